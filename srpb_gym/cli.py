@@ -1,0 +1,193 @@
+"""The ``srpb-gym`` command line.
+
+Usage::
+
+    srpb-gym metrics ROBOT_LOG [PEOPLE_LOG [GROUPS_LOG]] [--semantics S] [--preset P]
+                     [--param NAME=VALUE ...] [--json]
+    srpb-gym --version
+
+Every subcommand is registered by one ``add_<name>_command(subparsers)`` function listed in
+:data:`COMMANDS`; it sets ``func`` (taking the parsed arguments, returning the exit status).
+Exit status: 0 on success, 2 on bad input (one line ``srpb-gym: error: ...`` on stderr).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import warnings
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from srpb_gym import __version__
+from srpb_gym.errors import InputError
+
+PROG = "srpb-gym"
+
+
+# ---------------------------------------------------------------------------- metrics
+def add_metrics_command(subparsers: Any) -> None:
+    """Register ``metrics``: evaluate one episode and print its SRPB metrics."""
+    from srpb_gym.metrics.params import PARAM_NAMES, PRESETS, SEMANTICS
+
+    p = subparsers.add_parser(
+        "metrics",
+        help="compute the SRPB metrics of one episode",
+        description=(
+            "Compute the SRPB metrics of one episode, read from SRPB native logs "
+            "(*_robot.txt; *_people.txt and *_groups.txt siblings are found automatically "
+            "when no other log is given) or from an srpb-gym .npz record."
+        ),
+        epilog=f"parameter names: {', '.join(PARAM_NAMES)}",
+    )
+    p.add_argument("robot_log", metavar="ROBOT_LOG", nargs="?", help="robot log, or an .npz record")
+    p.add_argument("people_log", metavar="PEOPLE_LOG", nargs="?", help="people log")
+    p.add_argument("groups_log", metavar="GROUPS_LOG", nargs="?", help="groups log")
+    p.add_argument(
+        "--semantics",
+        choices=SEMANTICS,
+        default="paper",
+        help="paper equations or the reference tool's numbers (default: paper)",
+    )
+    p.add_argument(
+        "--preset",
+        choices=tuple(PRESETS),
+        default="paper",
+        help="parameter preset (default: paper)",
+    )
+    p.add_argument(
+        "--param",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override one parameter (repeatable)",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--example",
+        action="store_true",
+        help="evaluate the bundled example episode (a robot crossing a 5-person F-formation)",
+    )
+    p.set_defaults(func=run_metrics)
+
+
+def example_log() -> str:
+    """Path of the bundled example robot log (its people and groups logs lie beside it)."""
+    from importlib.resources import files
+
+    return str(files("srpb_gym") / "data" / "example" / "fformation5_robot.txt")
+
+
+def run_metrics(args: argparse.Namespace) -> int:
+    """Evaluate the episode named by ``args`` and print its metrics."""
+    from srpb_gym.metrics import METRIC_DESCRIPTIONS, METRIC_UNITS, evaluate
+    from srpb_gym.metrics.io import load_episode
+
+    overrides = parse_params(args.param, args.preset)
+    if args.example == (args.robot_log is not None):
+        raise InputError("give either ROBOT_LOG or --example", key="metrics")
+    robot_log = example_log() if args.example else args.robot_log
+    record = load_episode(robot_log, args.people_log, args.groups_log)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            values = evaluate(record, args.semantics, args.preset, **overrides)
+        except InputError:
+            raise
+        except ValueError as exc:  # an episode that cannot be evaluated (no sample, ...)
+            raise InputError(str(exc), robot_log) from None
+    for warning in caught:
+        print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
+    if args.json:
+        print(json.dumps({name: _json_number(v) for name, v in values.items()}, indent=2))
+    else:
+        print(format_table(values, METRIC_UNITS, METRIC_DESCRIPTIONS))
+    return 0
+
+
+def parse_params(items: Sequence[str], preset: str) -> dict[str, float]:
+    """``NAME=VALUE`` overrides as a dict, validated against the parameters of ``preset``.
+
+    Raises :class:`InputError` (key ``--param``) listing the valid names on a bad item.
+    """
+    from srpb_gym.metrics.params import resolve_params
+
+    overrides: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise InputError(f"expected NAME=VALUE, got {item!r}", key="--param")
+        overrides[name.strip()] = value.strip()
+    try:
+        resolve_params(preset, **overrides)
+    except KeyError as exc:
+        raise InputError(str(exc.args[0]), key="--param") from None
+    except ValueError as exc:
+        raise InputError(str(exc), key="--param") from None
+    return {name: float(value) for name, value in overrides.items()}
+
+
+def format_table(
+    values: dict[str, float], units: dict[str, str], descriptions: dict[str, str] | None = None
+) -> str:
+    """An aligned table: metric, value (6 significant digits), unit, and what it measures."""
+    descriptions = descriptions or {}
+    rows = [("metric", "value", "unit", "")]
+    rows += [
+        (name, f"{float(v):.6g}", units.get(name, ""), descriptions.get(name, ""))
+        for name, v in values.items()
+    ]
+    w = [max(len(r[i]) for r in rows) for i in range(3)]
+    return "\n".join(f"{n:<{w[0]}}  {v:>{w[1]}}  {u:<{w[2]}}  {d}".rstrip() for n, v, u, d in rows)
+
+
+def _json_number(value: float) -> float | str:
+    """A float for JSON; non-finite values as the strings NaN, Infinity, -Infinity."""
+    value = float(value)
+    if math.isnan(value):
+        return "NaN"
+    if math.isinf(value):
+        return "Infinity" if value > 0 else "-Infinity"
+    return value
+
+
+# ---------------------------------------------------------------------------- main
+COMMANDS: list[Callable[[Any], None]] = [add_metrics_command]
+"""Functions registering one subcommand each on the subparsers object."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every subcommand of :data:`COMMANDS`."""
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="Human-aware robot navigation benchmark scored by the SRPB metrics.",
+    )
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for register in COMMANDS:
+        register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 2 bad input or usage)."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help, --version and usage errors
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
+    if getattr(args, "func", None) is None:
+        parser.print_usage(sys.stderr)
+        print(f"{PROG}: error: a command is required", file=sys.stderr)
+        return 2
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    except BrokenPipeError:  # stdout closed early (piped into head, ...)
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1

@@ -1,0 +1,249 @@
+"""The episode record: what the robot did and what its tracker saw, stored column-wise.
+
+One :class:`EpisodeRecord` holds a whole episode as a few numpy arrays, so the metrics run
+vectorised over samples and people. It grows by :meth:`EpisodeRecord.append` (one control
+step at a time, as the environment fills it) or is built at once by
+:meth:`EpisodeRecord.from_arrays` (as the log readers do); both give the same record.
+
+Tables (all float64 unless said otherwise, SI units, global frame):
+
+- robot, shape (N, 12), columns :data:`ROBOT_FIELDS`: time [s], pose x, y [m], yaw [rad],
+  body-frame velocity vx, vy [m/s], omega [rad/s], goal x, y [m], yaw [rad], distance from
+  the robot centre to the nearest obstacle [m], planner computation time [s].
+- people, shape (P, 9), columns :data:`PERSON_FIELDS`: position [m], yaw [rad], position
+  covariance xx, xy, yx, yy [m^2], global-frame velocity [m/s]; ``people_sample`` (int64)
+  is the robot sample each row belongs to (non-decreasing), ``people_id`` (int64) the
+  person's id.
+- groups (F-formations), one row per group per sample: ``group_sample``, ``group_id``,
+  ``group_start`` and ``group_size`` (int64) index ``group_members``, which holds row
+  indices into the people table.
+
+Ids are integers. Logs with textual ids keep them in ``person_labels``/``group_labels``
+(label of id k is ``labels[k]``); without labels an id is written as the integer itself.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+ROBOT_FIELDS: tuple[str, ...] = (
+    "t", "x", "y", "yaw", "vx", "vy", "omega",
+    "goal_x", "goal_y", "goal_yaw", "obstacle_dist", "planning_time",
+)  # fmt: skip
+PERSON_FIELDS: tuple[str, ...] = (
+    "x", "y", "yaw", "cov_xx", "cov_xy", "cov_yx", "cov_yy", "vx", "vy",
+)  # fmt: skip
+R = {name: i for i, name in enumerate(ROBOT_FIELDS)}
+P = {name: i for i, name in enumerate(PERSON_FIELDS)}
+
+_INT_ARRAYS = ("people_sample", "people_id", "group_sample", "group_id", "group_start",
+               "group_size", "group_members")  # fmt: skip
+
+
+class _Growable:
+    """A 1-D or 2-D array with amortised O(1) appends along its first axis."""
+
+    __slots__ = ("buf", "n")
+
+    def __init__(self, width: int | None, dtype: type, capacity: int = 64) -> None:
+        shape = (capacity,) if width is None else (capacity, width)
+        self.buf = np.empty(shape, dtype=dtype)
+        self.n = 0
+
+    def reserve(self, extra: int) -> None:
+        need = self.n + extra
+        if need > self.buf.shape[0]:
+            shape = (max(need, 2 * self.buf.shape[0]), *self.buf.shape[1:])
+            new = np.empty(shape, dtype=self.buf.dtype)
+            new[: self.n] = self.buf[: self.n]
+            self.buf = new
+
+    def extend(self, values: ArrayLike) -> None:
+        values = np.asarray(values)
+        k = values.shape[0]
+        self.reserve(k)
+        self.buf[self.n : self.n + k] = values
+        self.n += k
+
+    def view(self) -> NDArray:
+        return self.buf[: self.n]
+
+
+class EpisodeRecord:
+    """A columnar SRPB episode; see the module docstring for the tables."""
+
+    def __init__(
+        self,
+        capacity: int = 256,
+        person_labels: Sequence[str] | None = None,
+        group_labels: Sequence[str] | None = None,
+    ) -> None:
+        self._robot = _Growable(len(ROBOT_FIELDS), np.float64, capacity)
+        self._people = _Growable(len(PERSON_FIELDS), np.float64, capacity)
+        self._ints = {name: _Growable(None, np.int64, capacity) for name in _INT_ARRAYS}
+        self.person_labels = None if person_labels is None else tuple(person_labels)
+        self.group_labels = None if group_labels is None else tuple(group_labels)
+
+    # ------------------------------------------------------------------ building
+    def append(
+        self,
+        robot: ArrayLike,
+        people_ids: ArrayLike | None = None,
+        people: ArrayLike | None = None,
+        group_ids: ArrayLike | None = None,
+        group_sizes: ArrayLike | None = None,
+        group_members: ArrayLike | None = None,
+    ) -> int:
+        """Append one sample; returns its index.
+
+        ``robot``: the 12 values of :data:`ROBOT_FIELDS`. ``people_ids`` (k,) and
+        ``people`` (k, 9): the people tracked at this sample. ``group_ids`` (g,),
+        ``group_sizes`` (g,) and ``group_members`` (sum of sizes,): each group's members as
+        indices into this sample's ``people`` rows.
+        """
+        row = np.asarray(robot, dtype=np.float64)
+        if row.shape != (len(ROBOT_FIELDS),):
+            raise ValueError(
+                f"robot sample must have {len(ROBOT_FIELDS)} values, got shape {row.shape}"
+            )
+        sample = self._robot.n
+        first_person = self._people.n
+        k = 0
+        if people is not None:
+            block = np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS))
+            ids = np.asarray(people_ids, dtype=np.int64).reshape(-1)
+            k = block.shape[0]
+            if ids.shape[0] != k:
+                raise ValueError(f"{ids.shape[0]} people ids for {k} people rows")
+        if group_ids is not None:
+            self._append_groups(sample, first_person, k, group_ids, group_sizes, group_members)
+        if k:
+            self._people.extend(block)
+            self._ints["people_id"].extend(ids)
+            self._ints["people_sample"].extend(np.full(k, sample, dtype=np.int64))
+        self._robot.extend(row[None, :])
+        return sample
+
+    def _append_groups(
+        self, sample, first_person, k, group_ids, group_sizes, group_members
+    ) -> None:
+        gids = np.asarray(group_ids, dtype=np.int64).reshape(-1)
+        sizes = np.asarray(group_sizes, dtype=np.int64).reshape(-1)
+        members = np.asarray(group_members, dtype=np.int64).reshape(-1)
+        if sizes.shape != gids.shape or sizes.sum() != members.shape[0] or np.any(sizes < 1):
+            raise ValueError(
+                "group_sizes must give one size >= 1 per group and sum to len(group_members)"
+            )
+        if members.size and (members.min() < 0 or members.max() >= k):
+            raise ValueError(f"group member index out of range for {k} people at this sample")
+        starts = self._ints["group_members"].n + np.cumsum(sizes) - sizes
+        self._ints["group_sample"].extend(np.full(gids.shape[0], sample, dtype=np.int64))
+        self._ints["group_id"].extend(gids)
+        self._ints["group_start"].extend(starts)
+        self._ints["group_size"].extend(sizes)
+        self._ints["group_members"].extend(members + first_person)
+
+    @classmethod
+    def from_arrays(
+        cls,
+        robot: ArrayLike,
+        people: ArrayLike | None = None,
+        people_sample: ArrayLike | None = None,
+        people_id: ArrayLike | None = None,
+        group_sample: ArrayLike | None = None,
+        group_id: ArrayLike | None = None,
+        group_size: ArrayLike | None = None,
+        group_members: ArrayLike | None = None,
+        person_labels: Sequence[str] | None = None,
+        group_labels: Sequence[str] | None = None,
+    ) -> EpisodeRecord:
+        """Build a record from whole tables (``group_members`` indexes people rows)."""
+        robot = np.asarray(robot, dtype=np.float64).reshape(-1, len(ROBOT_FIELDS))
+        rec = cls(max(robot.shape[0], 1), person_labels, group_labels)
+        rec._robot.extend(robot)
+        if people is not None:
+            rec._people.extend(np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS)))
+            rec._ints["people_sample"].extend(np.asarray(people_sample, dtype=np.int64))
+            rec._ints["people_id"].extend(np.asarray(people_id, dtype=np.int64))
+        if group_sample is not None:
+            sizes = np.asarray(group_size, dtype=np.int64)
+            rec._ints["group_sample"].extend(np.asarray(group_sample, dtype=np.int64))
+            rec._ints["group_id"].extend(np.asarray(group_id, dtype=np.int64))
+            rec._ints["group_size"].extend(sizes)
+            rec._ints["group_start"].extend(np.cumsum(sizes) - sizes)
+            rec._ints["group_members"].extend(np.asarray(group_members, dtype=np.int64))
+        rec.validate()
+        return rec
+
+    def validate(self) -> None:
+        """Check the tables' internal consistency; raises ``ValueError``."""
+        n, p = self.n_samples, self.people.shape[0]
+        ps = self.people_sample
+        if ps.shape[0] != p or self.people_id.shape[0] != p:
+            raise ValueError("people_sample and people_id must have one entry per people row")
+        if p and (ps[0] < 0 or ps[-1] >= n or np.any(np.diff(ps) < 0)):
+            raise ValueError("people_sample must be non-decreasing sample indices in [0, N)")
+        gs, m = self.group_sample, self.group_members
+        if gs.size and (gs.min() < 0 or gs.max() >= n or np.any(np.diff(gs) < 0)):
+            raise ValueError("group_sample must be non-decreasing sample indices in [0, N)")
+        if not (self.group_size.shape == self.group_id.shape == self.group_start.shape == gs.shape):
+            raise ValueError("group tables must have one entry per group row")
+        if np.any(self.group_size < 1) or self.group_size.sum() != m.shape[0]:
+            raise ValueError("group sizes must be >= 1 and sum to len(group_members)")
+        if np.any(self.group_start != np.cumsum(self.group_size) - self.group_size):
+            raise ValueError("group_start must be the running sum of group_size")
+        if m.size and (m.min() < 0 or m.max() >= p):
+            raise ValueError("group_members must index people rows")
+        if m.size and np.any(ps[m] != np.repeat(gs, self.group_size)):
+            raise ValueError("a group member must be a person of the group's own sample")
+
+    # ------------------------------------------------------------------ reading
+    @property
+    def n_samples(self) -> int:
+        return self._robot.n
+
+    @property
+    def robot(self) -> NDArray[np.float64]:
+        """(N, 12) view of the robot table."""
+        return self._robot.view()
+
+    @property
+    def people(self) -> NDArray[np.float64]:
+        """(P, 9) view of the people table."""
+        return self._people.view()
+
+    def robot_col(self, name: str) -> NDArray[np.float64]:
+        """One robot column as a contiguous array (a copy)."""
+        return np.ascontiguousarray(self._robot.view()[:, R[name]])
+
+    def person_col(self, name: str) -> NDArray[np.float64]:
+        """One people column as a contiguous array (a copy)."""
+        return np.ascontiguousarray(self._people.view()[:, P[name]])
+
+    def __getattr__(self, name: str) -> NDArray[np.int64]:
+        if name in _INT_ARRAYS:
+            return self.__dict__["_ints"][name].view()
+        raise AttributeError(name)
+
+    def person_label(self, pid: int) -> str:
+        return str(pid) if self.person_labels is None else self.person_labels[pid]
+
+    def group_label(self, gid: int) -> str:
+        return str(gid) if self.group_labels is None else self.group_labels[gid]
+
+    def copy(self) -> EpisodeRecord:
+        """A deep copy trimmed to its length."""
+        return EpisodeRecord.from_arrays(
+            self.robot.copy(), self.people.copy(), self.people_sample.copy(), self.people_id.copy(),
+            self.group_sample.copy(), self.group_id.copy(), self.group_size.copy(),
+            self.group_members.copy(), self.person_labels, self.group_labels,
+        )  # fmt: skip
+
+    def __repr__(self) -> str:
+        return (
+            f"EpisodeRecord(samples={self.n_samples}, person_rows={self.people.shape[0]}, "
+            f"group_rows={self.group_sample.shape[0]})"
+        )
