@@ -139,8 +139,14 @@ def motion_metrics(
     n = record.n_samples
     pt = col("planning_time")
     out = {"m_goal": float(goal_reached(record, params)) if (n > 1 or not reference) else 1.0}
-    out["m_cef"] = 1000.0 * float(pt.mean())
-    out["m_cre"] = 1000.0 * float(pt.std())
+    if not reference:  # NaN marks a sample without a decision (the final one of a run)
+        pt = pt[~np.isnan(pt)]
+        if pt.size == 0:
+            _warn_nan("m_cef, m_cre", "no planning time recorded")
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # mean of nothing: NaN, warned above
+        out["m_cef"] = 1000.0 * float(pt.mean())
+        out["m_cre"] = 1000.0 * float(pt.std())
     if n < 2:
         out.update(m_mef=0.0, m_plin=0.0, m_chc=0.0)
         undefined = ("m_obs", "m_vsm", "m_hsm", "m_osc", "m_bwd", "m_iprot")
@@ -277,7 +283,7 @@ def aggregate_social(
         value = float(np.float64(100.0 * num) / den)
     return {
         name: value,
-        f"{name}_min": 100.0 * stats[0],
-        f"{name}_max": 100.0 * stats[1],
-        f"{name}_viol": 100.0 * stats[3] / stats[2],
+        f"{name}_min": float(100.0 * stats[0]),
+        f"{name}_max": float(100.0 * stats[1]),
+        f"{name}_viol": float(100.0 * stats[3] / stats[2]),
     }

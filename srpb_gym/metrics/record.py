@@ -18,6 +18,9 @@ Tables (all float64 unless said otherwise, SI units, global frame):
   ``group_start`` and ``group_size`` (int64) index ``group_members``, which holds row
   indices into the people table.
 
+The integer columns (``people_sample``, ``people_id``, ``group_*``) read as contiguous
+copies; ``robot``, ``people`` and ``group_members`` are views.
+
 Ids are integers. Logs with textual ids keep them in ``person_labels``/``group_labels``
 (label of id k is ``labels[k]``); without labels an id is written as the integer itself.
 """
@@ -39,8 +42,9 @@ PERSON_FIELDS: tuple[str, ...] = (
 R = {name: i for i, name in enumerate(ROBOT_FIELDS)}
 P = {name: i for i, name in enumerate(PERSON_FIELDS)}
 
-_INT_ARRAYS = ("people_sample", "people_id", "group_sample", "group_id", "group_start",
-               "group_size", "group_members")  # fmt: skip
+# integer tables: people (sample, id); groups (sample, id, start, size); members (row)
+_PINT = {"people_sample": 0, "people_id": 1}
+_GINT = {"group_sample": 0, "group_id": 1, "group_start": 2, "group_size": 3}
 
 
 class _Growable:
@@ -68,6 +72,12 @@ class _Growable:
         self.buf[self.n : self.n + k] = values
         self.n += k
 
+    def grow(self, k: int) -> NDArray:
+        """``k`` new rows at the end, to be filled by the caller."""
+        self.reserve(k)
+        self.n += k
+        return self.buf[self.n - k : self.n]
+
     def view(self) -> NDArray:
         return self.buf[: self.n]
 
@@ -83,7 +93,9 @@ class EpisodeRecord:
     ) -> None:
         self._robot = _Growable(len(ROBOT_FIELDS), np.float64, capacity)
         self._people = _Growable(len(PERSON_FIELDS), np.float64, capacity)
-        self._ints = {name: _Growable(None, np.int64, capacity) for name in _INT_ARRAYS}
+        self._pint = _Growable(len(_PINT), np.int64, capacity)
+        self._gint = _Growable(len(_GINT), np.int64, max(capacity // 4, 4))
+        self._members = _Growable(None, np.int64, max(capacity // 4, 4))
         self.person_labels = None if person_labels is None else tuple(person_labels)
         self.group_labels = None if group_labels is None else tuple(group_labels)
 
@@ -96,13 +108,15 @@ class EpisodeRecord:
         group_ids: ArrayLike | None = None,
         group_sizes: ArrayLike | None = None,
         group_members: ArrayLike | None = None,
+        check: bool = True,
     ) -> int:
         """Append one sample; returns its index.
 
         ``robot``: the 12 values of :data:`ROBOT_FIELDS`. ``people_ids`` (k,) and
         ``people`` (k, 9): the people tracked at this sample. ``group_ids`` (g,),
         ``group_sizes`` (g,) and ``group_members`` (sum of sizes,): each group's members as
-        indices into this sample's ``people`` rows.
+        indices into this sample's ``people`` rows. ``check=False`` skips the consistency
+        checks of the group arrays (for callers that build them themselves).
         """
         row = np.asarray(robot, dtype=np.float64)
         if row.shape != (len(ROBOT_FIELDS),):
@@ -113,38 +127,46 @@ class EpisodeRecord:
         first_person = self._people.n
         k = 0
         if people is not None:
-            block = np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS))
-            ids = np.asarray(people_ids, dtype=np.int64).reshape(-1)
-            k = block.shape[0]
-            if ids.shape[0] != k:
-                raise ValueError(f"{ids.shape[0]} people ids for {k} people rows")
+            block = np.asarray(people, dtype=np.float64)
+            k = block.shape[0] if block.ndim == 2 else block.size // len(PERSON_FIELDS)
+            if np.shape(people_ids) != (k,):
+                raise ValueError(f"need {k} people ids, got shape {np.shape(people_ids)}")
         if group_ids is not None:
-            self._append_groups(sample, first_person, k, group_ids, group_sizes, group_members)
+            self._append_groups(
+                sample, first_person, k, group_ids, group_sizes, group_members, check
+            )
         if k:
-            self._people.extend(block)
-            self._ints["people_id"].extend(ids)
-            self._ints["people_sample"].extend(np.full(k, sample, dtype=np.int64))
-        self._robot.extend(row[None, :])
+            self._people.grow(k)[:] = block.reshape(k, len(PERSON_FIELDS))
+            ints = self._pint.grow(k)
+            ints[:, 0] = sample
+            ints[:, 1] = people_ids
+        self._robot.grow(1)[0] = row
         return sample
 
     def _append_groups(
-        self, sample, first_person, k, group_ids, group_sizes, group_members
+        self, sample, first_person, k, group_ids, group_sizes, group_members, check
     ) -> None:
-        gids = np.asarray(group_ids, dtype=np.int64).reshape(-1)
-        sizes = np.asarray(group_sizes, dtype=np.int64).reshape(-1)
-        members = np.asarray(group_members, dtype=np.int64).reshape(-1)
-        if sizes.shape != gids.shape or sizes.sum() != members.shape[0] or np.any(sizes < 1):
+        sizes = np.asarray(group_sizes, dtype=np.int64)
+        members = np.asarray(group_members, dtype=np.int64)
+        g = sizes.shape[0]
+        if check:
+            self._check_groups(k, group_ids, sizes, members)
+        rows = self._gint.grow(g)
+        rows[:, 0] = sample
+        rows[:, 1] = group_ids
+        rows[:, 2] = np.cumsum(sizes) - sizes + self._members.n
+        rows[:, 3] = sizes
+        self._members.grow(members.shape[0])[:] = members + first_person
+
+    @staticmethod
+    def _check_groups(k: int, group_ids, sizes, members) -> None:
+        g = sizes.shape[0]
+        if np.shape(group_ids) != (g,) or sizes.sum() != members.shape[0] or np.any(sizes < 1):
             raise ValueError(
                 "group_sizes must give one size >= 1 per group and sum to len(group_members)"
             )
         if members.size and (members.min() < 0 or members.max() >= k):
             raise ValueError(f"group member index out of range for {k} people at this sample")
-        starts = self._ints["group_members"].n + np.cumsum(sizes) - sizes
-        self._ints["group_sample"].extend(np.full(gids.shape[0], sample, dtype=np.int64))
-        self._ints["group_id"].extend(gids)
-        self._ints["group_start"].extend(starts)
-        self._ints["group_size"].extend(sizes)
-        self._ints["group_members"].extend(members + first_person)
 
     @classmethod
     def from_arrays(
@@ -165,16 +187,19 @@ class EpisodeRecord:
         rec = cls(max(robot.shape[0], 1), person_labels, group_labels)
         rec._robot.extend(robot)
         if people is not None:
-            rec._people.extend(np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS)))
-            rec._ints["people_sample"].extend(np.asarray(people_sample, dtype=np.int64))
-            rec._ints["people_id"].extend(np.asarray(people_id, dtype=np.int64))
+            block = np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS))
+            rec._people.extend(block)
+            ints = rec._pint.grow(block.shape[0])
+            ints[:, 0] = people_sample
+            ints[:, 1] = people_id
         if group_sample is not None:
-            sizes = np.asarray(group_size, dtype=np.int64)
-            rec._ints["group_sample"].extend(np.asarray(group_sample, dtype=np.int64))
-            rec._ints["group_id"].extend(np.asarray(group_id, dtype=np.int64))
-            rec._ints["group_size"].extend(sizes)
-            rec._ints["group_start"].extend(np.cumsum(sizes) - sizes)
-            rec._ints["group_members"].extend(np.asarray(group_members, dtype=np.int64))
+            sizes = np.asarray(group_size, dtype=np.int64).reshape(-1)
+            rows = rec._gint.grow(sizes.shape[0])
+            rows[:, 0] = group_sample
+            rows[:, 1] = group_id
+            rows[:, 2] = np.cumsum(sizes) - sizes
+            rows[:, 3] = sizes
+            rec._members.extend(np.asarray(group_members, dtype=np.int64).reshape(-1))
         rec.validate()
         return rec
 
@@ -224,8 +249,14 @@ class EpisodeRecord:
         return np.ascontiguousarray(self._people.view()[:, P[name]])
 
     def __getattr__(self, name: str) -> NDArray[np.int64]:
-        if name in _INT_ARRAYS:
-            return self.__dict__["_ints"][name].view()
+        state = self.__dict__
+        # integer columns are returned as contiguous copies (what the kernels take)
+        if name in _PINT:
+            return np.ascontiguousarray(state["_pint"].view()[:, _PINT[name]])
+        if name in _GINT:
+            return np.ascontiguousarray(state["_gint"].view()[:, _GINT[name]])
+        if name == "group_members":
+            return state["_members"].view()
         raise AttributeError(name)
 
     def person_label(self, pid: int) -> str:

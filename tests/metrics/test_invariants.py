@@ -125,6 +125,7 @@ def test_bounds(seed):
     for name in ("m_psi", "m_fsi", "m_dir"):
         assert m[f"{name}_min"] <= m[name] <= m[f"{name}_max"]
     assert m["m_goal"] in (0.0, 1.0)
+    assert all(type(v) is float for v in m.values())  # plain floats, JSON- and info-safe
     assert m["m_mef"] > 0 and m["m_plin"] > 0 and m["m_chc"] >= 0
     assert m["m_vsm"] >= 0 and m["m_hsm"] >= 0 and m["m_cef"] >= 0 and m["m_cre"] >= 0
     assert m["m_chc"] <= math.pi * (rec.n_samples - 1)

@@ -60,6 +60,16 @@ def test_computation_time():
         assert m["m_cre"] == pytest.approx(math.sqrt(200 / 3))  # population std [ms]
 
 
+def test_computation_time_skips_samples_without_decision():
+    rec = record_with(robot_rows([0, 1, 2], planning_time=[0.01, 0.03, math.nan]))
+    paper, ref = both(rec)
+    assert paper["m_cef"] == pytest.approx(20.0) and paper["m_cre"] == pytest.approx(10.0)
+    assert math.isnan(ref["m_cef"])  # the reference tool averages whatever is logged
+    nothing = record_with(robot_rows([0, 1], planning_time=math.nan))
+    with pytest.warns(SRPBMetricWarning, match="no planning time"):
+        assert math.isnan(evaluate(nothing)["m_cef"])
+
+
 def test_smoothness():
     rec = record_with(
         robot_rows([0, 0.1, 0.2], vx=[0, 0.1, 0.3], vy=[0, 0, 0.1], omega=[0, 0.2, 0.1])
