@@ -46,3 +46,30 @@ def test_example_episode(capsys):
 def test_example_and_log_are_exclusive(capsys):
     assert main(["metrics", "--example", "some_robot.txt"]) == 2
     assert "give either ROBOT_LOG or --example" in capsys.readouterr().err
+
+
+def test_every_subpackage_is_packaged():
+    """pyproject lists the packages explicitly: a new subpackage must be added there."""
+    import tomllib
+
+    root = Path(__file__).resolve().parents[1]
+    listed = set(
+        tomllib.loads((root / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"]
+    )
+    found = {
+        ".".join(p.parent.relative_to(root).parts) for p in (root / "srpb_gym").rglob("__init__.py")
+    }
+    assert found | {"srpb_gym.envs_data"} == listed
+
+
+def test_scenarios_are_package_data():
+    from importlib.resources import files
+
+    names = {p.name for p in files("srpb_gym.envs_data").iterdir()}
+    assert {
+        "corridor.yaml",
+        "fformation.yaml",
+        "crossing.yaml",
+        "crowd.yaml",
+        "doorway.yaml",
+    } <= names

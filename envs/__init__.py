@@ -1,0 +1,1 @@
+"""Packaged scenario files (YAML), installed as ``srpb_gym.envs_data``; see README.md."""

@@ -1,0 +1,251 @@
+"""Frozen dataclasses describing a scenario: the ranges an episode layout is drawn from.
+
+A :class:`Scenario` is what :func:`~srpb_gym.scenarios.loader.load_scenario` builds from a
+YAML file (documented in ``envs/README.md``) and what
+:func:`~srpb_gym.scenarios.sampler.sample` turns into one
+:class:`~srpb_gym.sim.layout.EpisodeLayout` per episode. SI units throughout (m, s, rad);
+a range ``(low, high)`` is drawn uniformly, a fixed value is stored as ``(v, v)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from srpb_gym.errors import InputError
+
+if TYPE_CHECKING:
+    from srpb_gym.scenarios.validate import FreeSpace
+
+ROBOT_RADIUS = 0.275  # m, circumradius of the differential-drive robot
+PLACEMENT_GAP = 0.05  # m, free gap kept around every body placed at the start of an episode
+MIN_FORMATION_MEMBERS = 2
+MAX_FORMATION_MEMBERS = 6
+MAX_GROUP_SIZE = 4  # walking groups of more than four people split up (Moussaid et al.)
+
+Point = tuple[float, float]
+Range = tuple[float, float]
+IntRange = tuple[int, int]
+
+
+@dataclass(frozen=True)
+class Place:
+    """A point (``xmin == xmax`` and ``ymin == ymax``) or an axis-aligned rectangle [m]."""
+
+    xmin: float
+    ymin: float
+    xmax: float
+    ymax: float
+
+    @classmethod
+    def point(cls, x: float, y: float) -> Place:
+        """The place holding the single point (x, y) [m]."""
+        return cls(x, y, x, y)
+
+    @property
+    def is_point(self) -> bool:
+        """True when the place has no extent."""
+        return self.xmin == self.xmax and self.ymin == self.ymax
+
+    @property
+    def center(self) -> Point:
+        """The centre (x, y) [m]."""
+        return (0.5 * (self.xmin + self.xmax), 0.5 * (self.ymin + self.ymax))
+
+    def corners(self) -> tuple[Point, ...]:
+        """The four corners (one point for a point place) [m]."""
+        if self.is_point:
+            return ((self.xmin, self.ymin),)
+        return (
+            (self.xmin, self.ymin), (self.xmax, self.ymin),
+            (self.xmax, self.ymax), (self.xmin, self.ymax),
+        )  # fmt: skip
+
+    def draw(self, rng: np.random.Generator) -> Point:
+        """A point drawn uniformly from the place [m]."""
+        if self.is_point:
+            return (self.xmin, self.ymin)
+        return (float(rng.uniform(self.xmin, self.xmax)), float(rng.uniform(self.ymin, self.ymax)))
+
+
+@dataclass(frozen=True)
+class YawSpec:
+    """A heading: a range [rad], or the direction from the robot start to its goal."""
+
+    towards_goal: bool = True
+    range: Range = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class PoseSpec:
+    """Where a robot pose is drawn from: a place and a heading."""
+
+    place: Place
+    yaw: YawSpec = field(default_factory=YawSpec)
+
+
+@dataclass(frozen=True)
+class RobotSpec:
+    """The robot's start and goal and how close to the goal counts as reached [m]."""
+
+    start: PoseSpec
+    goal: PoseSpec
+    goal_tolerance: float = 0.2
+
+
+@dataclass(frozen=True)
+class WalkerParams:
+    """Per-person parameter ranges of walking people (drawn once per person)."""
+
+    preferred_speed: Range = (0.8, 1.4)  # m/s
+    radius: Range = (0.2, 0.3)  # m, body circle
+    relaxation_time: Range = (0.4, 0.6)  # s
+    robot_reaction: Range = (1.0, 1.0)  # 0 ignores robots, 1 nominal
+
+
+@dataclass(frozen=True)
+class WalkerEntry:
+    """One ``people`` entry: walkers on a fixed route, or spawned with a random goal.
+
+    Route entries (``route`` set): ``count`` units walk the route one after another; the
+    last unit starts at the first waypoint, each earlier one ``spacing`` metres further
+    along the route, and unit k starts ``k * headway`` seconds after the first.
+    ``waypoint_jitter`` [m] shifts every waypoint uniformly per axis per episode.
+    Spawn entries (``spawn`` set): ``count`` units start anywhere in ``spawn`` and walk via
+    ``via`` to a point drawn from ``goal`` (and back again with ``loop``).
+    A unit is one person, or a walking group of ``group_size`` people walking abreast.
+    """
+
+    index: int
+    route: tuple[Point, ...] = ()
+    spawn: Place | None = None
+    goal: Place | None = None
+    via: tuple[Point, ...] = ()
+    count: IntRange = (1, 1)
+    spacing: Range = (1.0, 1.0)  # m
+    headway: Range = (0.0, 0.0)  # s
+    waypoint_jitter: float = 0.0  # m
+    start_delay: Range = (0.0, 0.0)  # s
+    loop: bool = False
+    group_size: IntRange = (1, 1)
+    params: WalkerParams = field(default_factory=WalkerParams)
+
+    @property
+    def key(self) -> str:
+        """The dotted key of the entry in the scenario file."""
+        return f"people[{self.index}]"
+
+    @property
+    def is_route(self) -> bool:
+        """True for a fixed-route entry, False for a spawn entry."""
+        return bool(self.route)
+
+    @property
+    def max_people(self) -> int:
+        """The largest number of people this entry can produce."""
+        return self.count[1] * self.group_size[1]
+
+
+@dataclass(frozen=True)
+class FormationSpec:
+    """One standing F-formation: members evenly spread on a circle, facing its centre.
+
+    ``radius``: radius of the member circle [m]; ``orientation``: angle of the first member
+    seen from the centre [rad]; ``body_radius``: members' body circle [m]; ``jitter``: the
+    standard deviation of the members' small motion [m].
+    """
+
+    index: int
+    center: Place
+    members: IntRange = (2, 2)
+    radius: Range = (0.6, 0.8)
+    orientation: Range = (-np.pi, np.pi)
+    jitter: float = 0.02
+    body_radius: Range = (0.2, 0.3)
+
+    @property
+    def key(self) -> str:
+        """The dotted key of the entry in the scenario file."""
+        return f"formations[{self.index}]"
+
+    @property
+    def extent(self) -> float:
+        """The largest distance from the centre to a member's body edge [m]."""
+        return self.radius[1] + self.body_radius[1]
+
+
+@dataclass(frozen=True)
+class SensorSpecs:
+    """Raw sensor specs (a preset name, a mapping or ``None`` for the default)."""
+
+    lidar: str | Mapping[str, Any] | None = None
+    detector: str | Mapping[str, Any] | None = None
+    tracker: Mapping[str, Any] | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A navigation scenario: a static world and the recipes of its episodes.
+
+    ``walls``: (S, 4) read-only array of wall segments x0, y0, x1, y1 [m], including the
+    edges of the obstacles and, with ``enclose``, of the bounds. ``obstacles``: the solid
+    polygons (each an (N, 2) array of vertices) whose edges are in ``walls``.
+    ``source`` and ``lines`` locate keys in the file for error messages;
+    ``free_space`` is precomputed by :func:`~srpb_gym.scenarios.validate.validate`.
+    """
+
+    name: str
+    walls: NDArray[np.float64]
+    robot: RobotSpec
+    bounds: tuple[float, float, float, float]
+    description: str = ""
+    time_limit: float = 60.0  # s
+    obstacles: tuple[NDArray[np.float64], ...] = ()
+    people: tuple[WalkerEntry, ...] = ()
+    formations: tuple[FormationSpec, ...] = ()
+    sensors: SensorSpecs = field(default_factory=SensorSpecs)
+    source: str | None = None
+    lines: Mapping[str, int] = field(default_factory=dict, repr=False)
+    free_space: FreeSpace | None = field(default=None, repr=False)
+
+    @property
+    def max_people(self) -> int:
+        """The largest number of walking people an episode can have."""
+        return sum(entry.max_people for entry in self.people)
+
+    @property
+    def max_formation_members(self) -> int:
+        """The largest number of people standing in F-formations in an episode."""
+        return sum(f.members[1] for f in self.formations)
+
+    def line_of(self, key: str) -> int | None:
+        """The 1-based line of ``key`` (or of its nearest enclosing key) in the file."""
+        return line_of(self.lines, key)
+
+    def error(self, key: str, message: str) -> InputError:
+        """An :class:`InputError` about ``key`` located in the scenario file."""
+        return located_error(message, self.source, self.lines, key)
+
+
+def line_of(lines: Mapping[str, int], key: str) -> int | None:
+    """The line recorded for ``key``, else for the nearest enclosing key, else ``None``."""
+    while key:
+        if key in lines:
+            return lines[key]
+        cut = max(key.rfind("."), key.rfind("["))
+        key = key[:cut] if cut > 0 else ""
+    return lines.get("")
+
+
+def located_error(
+    message: str, source: str | None, lines: Mapping[str, int], key: str
+) -> InputError:
+    """An :class:`InputError` reading ``file:line: key: message`` when the line is known."""
+    line = line_of(lines, key)
+    if line is None:
+        return InputError(message, source, key=key or None)
+    return InputError(f"{key}: {message}" if key else message, source, line=line, key=key or None)
