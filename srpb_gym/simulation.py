@@ -1,0 +1,340 @@
+"""The simulation step pipeline for any number of robots; no Gym API.
+
+One :meth:`Simulation.step` advances the world by one control step:
+
+commands -> velocity and acceleration limits -> crowd desired velocities -> physics
+substeps -> measured robot velocities -> obstacle distance, lidar scan, people detection ->
+tracker -> groups seen -> one sample appended to each robot's SRPB records (tracked and
+ground truth).
+
+Every robot has its own lidar, detector, tracker, goal and records; robots see each other
+in their lidar and avoid each other physically; people react to all robots. A record
+sample n holds the state at time t_n and the planner computation time of the decision
+taken at t_n, written when that decision arrives with the next :meth:`Simulation.step`;
+the final sample, at which no decision is taken, keeps NaN there (the metrics skip it).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from srpb_gym.config import from_spec
+from srpb_gym.metrics.record import EpisodeRecord, R
+from srpb_gym.perception.detector import DetectorConfig, PeopleDetector
+from srpb_gym.perception.groups import seen_groups
+from srpb_gym.perception.lidar import Lidar, LidarConfig
+from srpb_gym.perception.tracker import KalmanTracker, TrackerConfig
+from srpb_gym.sim import geometry
+from srpb_gym.sim.crowd import Crowd, SocialForceConfig
+from srpb_gym.sim.layout import EpisodeLayout
+from srpb_gym.sim.robot import RobotConfig, body_to_world, limit_commands, measure_velocity
+from srpb_gym.sim.world import World
+
+OBSTACLE_DISTANCE = ("exact", "lidar")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Rates and options of the simulation (SI units)."""
+
+    control_dt: float = 0.1  # s, one step of the agent
+    physics_dt: float = 0.025  # s, one physics substep; control_dt / physics_dt substeps
+    crowd_every_substep: bool = False  # recompute the social force at every substep
+    # "exact": distance from the robot centre to the nearest wall or body;
+    # "lidar": the shortest lidar range (what a real robot's costmap would see)
+    obstacle_distance: str = "exact"
+
+    def __post_init__(self) -> None:
+        if not (self.control_dt > 0 and self.physics_dt > 0):
+            raise ValueError("control_dt and physics_dt must be > 0")
+        ratio = self.control_dt / self.physics_dt
+        if abs(ratio - round(ratio)) > 1e-9 or round(ratio) < 1:
+            raise ValueError(
+                f"control_dt ({self.control_dt} s) must be a whole multiple of "
+                f"physics_dt ({self.physics_dt} s)"
+            )
+        if self.obstacle_distance not in OBSTACLE_DISTANCE:
+            raise ValueError(f"obstacle_distance must be one of {OBSTACLE_DISTANCE}")
+
+    @property
+    def substeps(self) -> int:
+        return round(self.control_dt / self.physics_dt)
+
+    @classmethod
+    def from_spec(cls, spec: Any, path: str = "sim", file: str | None = None) -> SimConfig:
+        return from_spec(cls, spec, {"default": cls()}, path, file)
+
+
+@dataclass
+class RobotState:
+    """Per-robot sensing of the latest step (arrays are overwritten every step)."""
+
+    lidar: Lidar
+    detector: PeopleDetector
+    tracker: KalmanTracker
+    record: EpisodeRecord
+    gt_record: EpisodeRecord
+    goal: NDArray[np.float64]
+    scan: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
+    track_person: NDArray[np.int64] = field(default_factory=lambda: np.full(64, -1))
+
+
+class Simulation:
+    """A world of robots and people; see the module docstring for the step pipeline."""
+
+    def __init__(
+        self,
+        sim: SimConfig | None = None,
+        robot: RobotConfig | None = None,
+        lidar: LidarConfig | None = None,
+        detector: DetectorConfig | None = None,
+        tracker: TrackerConfig | None = None,
+        crowd: SocialForceConfig | None = None,
+    ) -> None:
+        self.config = sim or SimConfig()
+        self.robot_config = robot or RobotConfig()
+        self.lidar_config = lidar or LidarConfig()
+        self.detector_config = detector or DetectorConfig()
+        self.tracker_config = tracker or TrackerConfig()
+        self.crowd = Crowd(crowd or SocialForceConfig())
+        low, high = self.robot_config.velocity_bounds
+        self._low, self._high = low, high
+        c = self.robot_config
+        self._acc = np.array([c.acc_lin, c.acc_lin, c.acc_ang])
+
+    @classmethod
+    def from_scenario(
+        cls,
+        scenario: Any,
+        sim: SimConfig | None = None,
+        robot: RobotConfig | None = None,
+        crowd: SocialForceConfig | None = None,
+    ) -> Simulation:
+        """A simulation with the sensors and tracker a scenario names."""
+        where = scenario.source
+        sensors = scenario.sensors
+        return cls(
+            sim,
+            robot,
+            LidarConfig.from_spec(sensors.lidar, "sensors.lidar", where),
+            DetectorConfig.from_spec(sensors.detector, "sensors.detector", where),
+            TrackerConfig.from_spec(sensors.tracker, "sensors.tracker", where),
+            crowd,
+        )
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, layout: EpisodeLayout, rng: np.random.Generator) -> None:
+        """Build a fresh world for ``layout``; all randomness of the episode comes from ``rng``."""
+        self.layout, self.rng = layout, rng
+        self.walls = np.ascontiguousarray(np.asarray(layout.walls, dtype=np.float64).reshape(-1, 4))
+        self.t, self.steps = 0.0, 0
+        self.crowd.reset(layout.people, layout.formations, self.walls, rng)
+        n_robots = len(layout.robots)
+        robots = [(self.robot_config, r.start) for r in layout.robots]
+        self.world = World(
+            self.walls,
+            robots,
+            self.crowd.position.copy(),
+            self.crowd.radius,
+            self.config.physics_dt,
+            self.config.substeps,
+        )
+        self.n_robots, self.n_people = n_robots, self.crowd.position.shape[0]
+        # bodies as circles: people first, then robots (their footprints)
+        self.circles = np.zeros((self.n_people + n_robots, 3))
+        self.circles[: self.n_people, 2] = self.crowd.radius
+        self.circles[self.n_people :, 2] = self.robot_config.radius
+        self._people_circle = np.arange(self.n_people, dtype=np.int64)
+        self.command = np.zeros((n_robots, 3))  # last body-frame command, limited
+        self.velocity = np.zeros((n_robots, 3))  # measured body-frame velocity
+        self.obstacle_dist = np.zeros(n_robots)
+        self._world_cmd = np.zeros((n_robots, 3))
+        self.robots = [self._robot_state(r.goal) for r in layout.robots]
+        self._init_group_buffers()
+        self._sense_and_record()
+
+    def _init_group_buffers(self) -> None:
+        """Ground-truth rows and groups (membership is fixed for the episode) and scratch
+        space for the groups each robot sees."""
+        p, crowd = self.n_people, self.crowd
+        self._gt_rows = np.zeros((p, 9))  # covariance columns stay 0
+        self._gt_ids = np.arange(p, dtype=np.int64)
+        self._form_counts = np.zeros(crowd.formation_centers.shape[0], dtype=np.int64)
+        self._gt_groups = self._collect_groups(self._gt_ids, 2)
+
+    def _robot_state(self, goal: Sequence[float]) -> RobotState:
+        return RobotState(
+            Lidar(self.lidar_config),
+            PeopleDetector(self.detector_config),
+            KalmanTracker(self.tracker_config),
+            EpisodeRecord(),
+            EpisodeRecord(),
+            np.asarray(goal, dtype=np.float64),
+        )
+
+    # ------------------------------------------------------------------ step
+    def step(self, commands: ArrayLike, planning_time: ArrayLike | None = None) -> None:
+        """Advance one control step.
+
+        ``commands``: (R, 3) body-frame (vx [m/s], vy [m/s], omega [rad/s]) per robot (vy
+        is ignored by a differential drive); clipped to the limits. ``planning_time``: (R,)
+        computation time [s] of each command, stored with the sample it was decided at.
+        """
+        cmd = np.asarray(commands, dtype=np.float64).reshape(self.n_robots, 3)
+        if self.robot_config.kinematics == "diff":
+            cmd = cmd.copy()
+            cmd[:, 1] = 0.0
+        if planning_time is not None:
+            pt = np.ravel(planning_time)
+            for r, state in enumerate(self.robots):
+                value = float(pt[r] if pt.size > 1 else pt[0])
+                state.record.robot[-1, R["planning_time"]] = value
+                state.gt_record.robot[-1, R["planning_time"]] = value
+        dt = self.config.control_dt
+        limit_commands(cmd, self.command, self._low, self._high, self._acc, dt, self.command)
+        before = self.world.robot_pose.copy()
+        self._advance_physics()
+        after = self.world.robot_pose
+        measure_velocity(
+            before[:, 0],
+            before[:, 1],
+            before[:, 2],
+            after[:, 0],
+            after[:, 1],
+            after[:, 2],
+            dt,
+            self.velocity,
+        )
+        self.steps += 1
+        self.t = self.steps * dt
+        self._sense_and_record()
+
+    def _advance_physics(self) -> None:
+        cfg, world = self.config, self.world
+        rounds, sub = (cfg.substeps, 1) if cfg.crowd_every_substep else (1, cfg.substeps)
+        world.collisions[:] = False
+        dt = cfg.physics_dt * sub
+        for _ in range(rounds):
+            pose = world.robot_pose
+            body_to_world(self.command, pose[:, 2], dt, self._world_cmd)
+            robot_xy = np.ascontiguousarray(pose[:, :2])
+            robot_v = np.ascontiguousarray(self._world_cmd[:, :2])
+            radius = np.full(self.n_robots, self.robot_config.radius)
+            v = self.crowd.desired_velocity(
+                self.t, dt, robot_xy, robot_v, radius, self.walls, self.rng
+            )
+            world.step(self._world_cmd, v, sub)
+            self.crowd.sync(world.people_xy, world.people_velocity)
+
+    # ------------------------------------------------------------------ sensing
+    def _sense_and_record(self) -> None:
+        pose = self.world.robot_pose
+        self.circles[: self.n_people, :2] = self.world.people_xy
+        self.circles[self.n_people :, :2] = pose[:, :2]
+        for r, state in enumerate(self.robots):
+            self._sense(r, state, pose[r])
+
+    def _sense(self, r: int, state: RobotState, pose: NDArray[np.float64]) -> None:
+        x, y, yaw = float(pose[0]), float(pose[1]), float(pose[2])
+        skip = self.n_people + r
+        state.scan = state.lidar.scan(x, y, yaw, self.walls, self.circles, skip, self.rng)
+        if self.config.obstacle_distance == "exact":
+            d = geometry.point_obstacle_distance(x, y, self.walls, self.circles, skip)
+        else:
+            d = float(state.scan.min())
+        self.obstacle_dist[r] = d
+        det = state.detector.detect(
+            x,
+            y,
+            yaw,
+            self.world.people_xy,
+            self.crowd.yaw,
+            self.circles,
+            skip,
+            self._people_circle,
+            self.walls,
+            self.rng,
+        )
+        first = state.record.n_samples == 0
+        state.tracker.step(0.0 if first else self.config.control_dt, det.xy, det.yaw, det.std)
+        tracks = state.tracker.tracks()
+        self._remember_people(state, tracks.ids, tracks.detection, det.index)
+        robot_row = self._robot_row(pose, r, state.goal)
+        self._append_tracked(state, robot_row, tracks)
+        self._append_truth(state, robot_row)
+
+    def _robot_row(self, pose, r: int, goal) -> NDArray[np.float64]:
+        v = self.velocity[r]
+        yaw = math.remainder(float(pose[2]), 2 * math.pi)
+        return np.array(
+            [
+                self.t,
+                pose[0],
+                pose[1],
+                yaw,
+                v[0],
+                v[1],
+                v[2],
+                goal[0],
+                goal[1],
+                goal[2],
+                self.obstacle_dist[r],
+                math.nan,
+            ]
+        )
+
+    @staticmethod
+    def _remember_people(state: RobotState, ids, detection, det_index) -> None:
+        """Which true person each track last followed (for the groups the robot sees)."""
+        if ids.size and ids.max() >= state.track_person.shape[0]:
+            grown = np.full(2 * int(ids.max()) + 1, -1, dtype=np.int64)
+            grown[: state.track_person.shape[0]] = state.track_person
+            state.track_person = grown
+        matched = detection >= 0
+        state.track_person[ids[matched]] = det_index[detection[matched]]
+
+    def _append_tracked(self, state: RobotState, robot_row, tracks) -> None:
+        k = tracks.ids.shape[0]
+        rows = np.empty((k, 9))
+        rows[:, 0:2] = tracks.xy
+        rows[:, 2] = tracks.yaw
+        rows[:, 3:7] = tracks.covariance.reshape(k, 4)
+        rows[:, 7:9] = tracks.velocity
+        gids, sizes, members = self._collect_groups(state.track_person[tracks.ids], 2)
+        state.record.append(robot_row, tracks.ids, rows, gids, sizes, members, check=False)
+
+    def _append_truth(self, state: RobotState, robot_row) -> None:
+        rows = self._gt_rows
+        rows[:, 0:2] = self.world.people_xy
+        rows[:, 2] = self.crowd.yaw
+        rows[:, 7:9] = self.world.people_velocity
+        state.gt_record.append(robot_row, self._gt_ids, rows, *self._gt_groups, check=False)
+
+    def _collect_groups(self, people: NDArray[np.int64], min_members: int):
+        """F-formations with at least ``min_members`` of ``people`` (the true person of each
+        row, -1 unknown): group ids (formation indices), sizes, member rows; or Nones."""
+        k = people.shape[0]
+        gids, sizes, members = (np.empty(k, dtype=np.int64) for _ in range(3))
+        g, m = seen_groups(people, self.crowd.formation_of, min_members, self._form_counts,
+                           gids, sizes, members)  # fmt: skip
+        if g == 0:
+            return None, None, None
+        return gids[:g], sizes[:g], members[:m]
+
+    # ------------------------------------------------------------------ queries
+    def goal_distance(self) -> NDArray[np.float64]:
+        """(R,) distance from each robot to its goal position [m]."""
+        pose = self.world.robot_pose
+        goals = np.array([s.goal[:2] for s in self.robots])
+        return np.hypot(goals[:, 0] - pose[:, 0], goals[:, 1] - pose[:, 1])
+
+    @property
+    def collisions(self) -> NDArray[np.bool_]:
+        """(R, 3) contacts of each robot during the last step: wall, person, robot."""
+        return self.world.collisions
