@@ -223,43 +223,69 @@ def social_values(
     record: EpisodeRecord, params: MetricParams, reference: bool
 ) -> EpisodeEvaluation:
     """Per-person psi and dir, per-group fsi and O-space ellipses of every sample."""
-    r, p = record.robot_col, record.person_col
-    rx, ry, ryaw = r("x"), r("y"), r("yaw")
-    speed = np.hypot(r("vx"), r("vy"))
-    rows = record.people.shape[0]
-    psi, dirv = np.empty(rows), np.empty(rows)
-    px, py = p("x"), p("y")
-    cov = p("cov_xx"), p("cov_xy"), p("cov_yx"), p("cov_yy")
-    kernels.person_terms(
-        rx, ry, ryaw, speed, record.people_sample, px, py, p("yaw"), p("vx"), p("vy"), *cov,
-        params.person_fov, params.robot_max_speed, params.robot_circumradius,
-        params.person_occupancy_radius, reference, psi, dirv,
-    )  # fmt: skip
-    ellipses, taubin = group_ellipses(record, px, py, params, reference)
-    g = record.group_sample.shape[0]
-    sxx, sxy, syy, fsi = np.empty(g), np.empty(g), np.empty(g), np.empty(g)
-    members, start, size = record.group_members, record.group_start, record.group_size
-    kernels.group_covariances(*cov, members, start, size, reference, sxx, sxy, syy)
-    e = np.ascontiguousarray(ellipses.T)
-    kernels.group_terms(
-        rx, ry, record.group_sample, e[0], e[1], e[2], e[3], e[4], sxx, sxy, syy, fsi
+    groups = (record.group_sample, record.group_members, record.group_start, record.group_size)
+    psi, dirv, fsi, ellipses, taubin = entity_values(
+        record.robot, record.people, record.people_sample, *groups, params, reference
     )
     return EpisodeEvaluation({}, psi, dirv, fsi, ellipses, taubin)
 
 
+def entity_values(
+    robot: NDArray[np.float64],
+    people: NDArray[np.float64],
+    people_sample: NDArray[np.int64],
+    group_sample: NDArray[np.int64],
+    group_members: NDArray[np.int64],
+    group_start: NDArray[np.int64],
+    group_size: NDArray[np.int64],
+    params: MetricParams,
+    reference: bool,
+) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+    """psi and dir of every people row, fsi, O-space ellipse and fit kind of every group row.
+
+    Tables as in :class:`EpisodeRecord` (``robot`` (N, 12), ``people`` (P, 9); samples index
+    ``robot`` rows, members index ``people`` rows), so this serves a whole episode as well
+    as the latest sample of a running one.
+    """
+    g = group_sample.shape[0]
+    psi, dirv, fsi = np.empty(people.shape[0]), np.empty(people.shape[0]), np.empty(g)
+    no_groups = np.empty((0, 5)), np.zeros(0, dtype=np.bool_)
+    if people.shape[0] == 0:
+        return psi, dirv, fsi, *no_groups
+    _, rx, ry, ryaw, vx, vy = np.ascontiguousarray(robot[:, :6].T)  # R: t, x, y, yaw, vx, vy
+    px, py, pyaw, cxx, cxy, cyx, cyy, pvx, pvy = np.ascontiguousarray(people.T)
+    kernels.person_terms(
+        rx, ry, ryaw, np.hypot(vx, vy), people_sample, px, py, pyaw, pvx, pvy, cxx, cxy, cyx,
+        cyy, params.person_fov, params.robot_max_speed, params.robot_circumradius,
+        params.person_occupancy_radius, reference, psi, dirv,
+    )  # fmt: skip
+    if g == 0:
+        return psi, dirv, fsi, *no_groups
+    ellipses, taubin = group_ellipses(
+        px, py, group_members, group_start, group_size, params, reference
+    )
+    sxx, sxy, syy = np.empty(g), np.empty(g), np.empty(g)
+    kernels.group_covariances(
+        cxx, cxy, cyx, cyy, group_members, group_start, group_size, reference, sxx, sxy, syy
+    )
+    e = np.ascontiguousarray(ellipses.T)
+    kernels.group_terms(rx, ry, group_sample, e[0], e[1], e[2], e[3], e[4], sxx, sxy, syy, fsi)
+    return psi, dirv, fsi, ellipses, taubin
+
+
 def group_ellipses(
-    record: EpisodeRecord, px, py, params: MetricParams, reference: bool
+    px, py, members, start, size, params: MetricParams, reference: bool
 ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
     """O-space ellipse of every group row: Taubin's fit where it applies and is accepted
     (``paper``: 5 or more members; ``reference``: 2 or more), else the fallback."""
-    members, start, size = record.group_members, record.group_start, record.group_size
     out = np.empty((size.shape[0], 5))
     taubin = size >= (2 if reference else 5)
     rows = np.flatnonzero(taubin)
-    fits = taubin_fit(px, py, members, start[rows], size[rows])
-    accepted = accept_fit(fits, px, py, members, start[rows], size[rows], reference)
-    out[rows[accepted]] = fits[accepted]
-    taubin[rows[~accepted]] = False
+    if rows.size:
+        fits = taubin_fit(px, py, members, start[rows], size[rows])
+        accepted = accept_fit(fits, px, py, members, start[rows], size[rows], reference)
+        out[rows[accepted]] = fits[accepted]
+        taubin[rows[~accepted]] = False
     e = np.empty((5, size.shape[0]))
     kernels.fallback_ellipses(
         px, py, members, start, size, params.person_occupancy_radius, reference, taubin,

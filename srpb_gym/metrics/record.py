@@ -125,6 +125,7 @@ class EpisodeRecord:
             )
         sample = self._robot.n
         first_person = self._people.n
+        self._last_start = (first_person, self._gint.n, self._members.n)
         k = 0
         if people is not None:
             block = np.asarray(people, dtype=np.float64)
@@ -224,6 +225,32 @@ class EpisodeRecord:
             raise ValueError("group_members must index people rows")
         if m.size and np.any(ps[m] != np.repeat(gs, self.group_size)):
             raise ValueError("a group member must be a person of the group's own sample")
+
+    def latest(self) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
+        """The last sample as small tables: robot (1, 12), people (k, 9), people ids (k,),
+        group sizes (g,) and group members (sum of sizes,) as indices into its people."""
+        n = self.n_samples - 1
+        if n < 0:
+            raise ValueError("the record is empty")
+        start = self.__dict__.get("_last_start")  # set by append; absent after from_arrays
+        if start is None:
+            start = self._sample_start(n)
+        p0, g0, m0 = start
+        pint, gint = self._pint.view(), self._gint.view()
+        return (
+            self._robot.view()[n:],
+            self._people.view()[p0:],
+            pint[p0:, 1],
+            gint[g0:, 3],
+            self._members.view()[m0:] - p0,
+        )
+
+    def _sample_start(self, n: int) -> tuple[int, int, int]:
+        p0 = int(np.searchsorted(self._pint.view()[:, 0], n))
+        gint = self._gint.view()
+        g0 = int(np.searchsorted(gint[:, 0], n))
+        m0 = int(gint[g0, 2]) if g0 < gint.shape[0] else self._members.n
+        return p0, g0, m0
 
     # ------------------------------------------------------------------ reading
     @property

@@ -129,3 +129,14 @@ def test_bounds(seed):
     assert m["m_mef"] > 0 and m["m_plin"] > 0 and m["m_chc"] >= 0
     assert m["m_vsm"] >= 0 and m["m_hsm"] >= 0 and m["m_cef"] >= 0 and m["m_cre"] >= 0
     assert m["m_chc"] <= math.pi * (rec.n_samples - 1)
+
+
+@pytest.mark.parametrize("rebuilt", [False, True])
+def test_latest_sample_tables(rebuilt):
+    rec = random_episode(1, n=5)
+    rec = rec.copy() if rebuilt else rec  # from_arrays: located by search, not remembered
+    robot, people, ids, sizes, members = rec.latest()
+    last = rec.people_sample == rec.n_samples - 1
+    assert np.array_equal(robot, rec.robot[-1:])
+    assert np.array_equal(people, rec.people[last]) and np.array_equal(ids, rec.people_id[last])
+    assert np.array_equal(sizes, [5]) and np.array_equal(members, np.arange(4, 9))
