@@ -8,7 +8,6 @@ scenario is then checked geometrically by :func:`~srpb_gym.scenarios.validate.va
 
 from __future__ import annotations
 
-import importlib.resources
 import math
 import os
 from collections.abc import Iterable
@@ -19,6 +18,7 @@ import numpy as np
 import yaml
 
 from srpb_gym.errors import InputError
+from srpb_gym.resources import scenarios_dir
 from srpb_gym.scenarios.schema import (
     MAX_FORMATION_MEMBERS,
     MAX_GROUP_SIZE,
@@ -39,7 +39,6 @@ from srpb_gym.scenarios.schema import (
 )
 from srpb_gym.scenarios.validate import polygon_area, rectangle_corners, ring_segments, validate
 
-PACKAGE_DATA = "srpb_gym.envs_data"
 SUFFIXES = (".yaml", ".yml")
 TOP_KEYS = (
     "name", "description", "time_limit", "bounds", "enclose", "walls", "obstacles", "robot",
@@ -61,10 +60,7 @@ FORMATION_KEYS = (
 
 def _packaged_dir() -> Any:
     """The folder of packaged scenario files (installed package data, else ``envs/``)."""
-    try:
-        return importlib.resources.files(PACKAGE_DATA)
-    except ModuleNotFoundError:
-        return Path(__file__).resolve().parents[2] / "envs"
+    return scenarios_dir()
 
 
 def list_scenarios() -> list[str]:

@@ -114,6 +114,19 @@ class World:
         self.state = np.zeros((self._n_bodies, 6))  # x, y, angle, vx, vy, omega of every body
         self.read_state()
 
+    def __getstate__(self) -> dict:
+        # the batch buffers are C data: rebuilt after unpickling (body ids change too)
+        state = self.__dict__.copy()
+        for key in ("_state_buf", "_set_buf", "_fields_get", "_fields_set"):
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        collisions = state["collisions"].copy()
+        self.__dict__.update(state)
+        self._init_batch()
+        self.collisions[:] = collisions
+
     def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, col: int) -> None:
         for shape in arbiter.shapes:
             index = self._robot_of.get(shape)

@@ -1,0 +1,38 @@
+"""Registration of the srpb-gym environment ids with Gymnasium."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import yaml
+
+from srpb_gym.resources import scenarios_dir
+
+ENTRY_POINT = "srpb_gym.env:SRPBNavEnv"
+CONTROL_DT = 0.1  # s, the default control step (srpb_gym.simulation.SimConfig)
+
+#: environment id -> packaged scenario
+SCENARIO_IDS: dict[str, str] = {
+    "SRPB-Corridor-v0": "corridor",
+    "SRPB-FFormation-v0": "fformation",
+    "SRPB-Crossing-v0": "crossing",
+    "SRPB-Crowd-v0": "crowd",
+    "SRPB-Doorway-v0": "doorway",
+}
+CUSTOM_ID = "SRPB-Custom-v0"
+
+
+def _max_steps(scenario: str) -> int:
+    """Control steps in the scenario's time limit (at the default control step)."""
+    data = yaml.safe_load((scenarios_dir() / f"{scenario}.yaml").read_text(encoding="utf-8"))
+    return round(float(data.get("time_limit", 60.0)) / CONTROL_DT)
+
+
+def register_envs() -> None:
+    """Register every id (idempotent). ``SRPB-Custom-v0`` takes ``scenario="file.yaml"``
+    and truncates at that file's time limit itself."""
+    for env_id, scenario in SCENARIO_IDS.items():
+        if env_id not in gym.registry:
+            gym.register(env_id, entry_point=ENTRY_POINT, kwargs={"scenario": scenario},
+                         max_episode_steps=_max_steps(scenario))  # fmt: skip
+    if CUSTOM_ID not in gym.registry:
+        gym.register(CUSTOM_ID, entry_point=ENTRY_POINT)
