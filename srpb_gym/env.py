@@ -52,10 +52,27 @@ class SRPBNavEnv(gym.Env):
     NaN or infinite actions raise ``ValueError``.
 
     ## Observation Space
-    ``observation={"type": "flat"}`` (default): ``Box(-1, 1, (8 + L + 7 K,), float32)`` with
-    the goal in the robot frame, the measured velocity, L lidar sectors and the K nearest
-    tracked people (relative position and velocity, position std, presence mask);
-    ``"dict"``: the same parts as a ``Dict``. Layout: :mod:`srpb_gym.observation`.
+    ``observation={"type": "flat"}`` (default): ``Box(-1, 1, (8 + L + 7 K,), float32)``,
+    80 values with the defaults L = 30 lidar sectors and K = 6 people. Robot frame: x
+    ahead, y to the left; every value is normalised and clipped to [-1, 1].
+
+    | index | element | unit before scaling | scale |
+    | --- | --- | --- | --- |
+    | 0 | distance to the goal | m | / 20 (``goal_scale``) |
+    | 1, 2 | cos, sin of the bearing of the goal | - | - |
+    | 3, 4 | cos, sin of (goal yaw - robot yaw) | - | - |
+    | 5 | measured vx | m/s | / 0.5 (the largest speed) |
+    | 6 | measured vy (0 for a differential drive) | m/s | / 0.3 (vy_max) |
+    | 7 | measured omega | rad/s | / 1.05 |
+    | 8 .. 8+L-1 | shortest lidar range of each of L sectors, right to left | m | / 25 |
+    | 8+L+7j+0, +1 | tracked person j (nearest first): relative x, y | m | / 8 (``people_range``) |
+    | 8+L+7j+2, +3 | its velocity relative to the robot, x, y | m/s | / 2 (``speed_scale``) |
+    | 8+L+7j+4, +5 | its position standard deviation along x, y | m | / 1 (``uncertainty_scale``) |
+    | 8+L+7j+6 | presence: 1, or 0 for an empty slot (all its values 0) | - | - |
+
+    ``observation={"type": "dict"}``: ``Dict`` with ``goal`` (5,), ``velocity`` (3,),
+    ``lidar`` (L,), ``people`` (K, 6) and ``people_mask`` (K,), the same values. Other keys
+    of the mapping (``lidar_bins``, ``people``, the scales) change L, K and the scales.
 
     ## Rewards
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,
