@@ -21,6 +21,7 @@ from srpb_gym.observation import ObservationBuilder, ObservationConfig
 from srpb_gym.perception.detector import DetectorConfig
 from srpb_gym.perception.lidar import LidarConfig
 from srpb_gym.perception.tracker import TrackerConfig
+from srpb_gym.planners.base import Knowledge
 from srpb_gym.reward import SRPB_TERMS, TERMS, RewardFunction, resolve_weights
 from srpb_gym.scenarios import load_scenario, sample
 from srpb_gym.sim.crowd import SocialForceConfig
@@ -265,6 +266,19 @@ class SRPBNavEnv(gym.Env):
         if self._renderer is not None:
             self._renderer.close()
             self._renderer = None
+
+    def knowledge(self) -> Knowledge:
+        """What the robot knows now, for classical planners (never the ground truth)."""
+        sim, state = self.sim, self.sim.robots[0]
+        return Knowledge(
+            walls=sim.walls, bounds=sim.layout.bounds, pose=sim.world.robot_pose[0].copy(),
+            velocity=sim.velocity[0].copy(), command=sim.command[0].copy(),
+            goal=state.goal.copy(), goal_tolerance=self.params.goal_tolerance_xy,
+            goal_yaw_tolerance=self.params.goal_tolerance_yaw, tracks=state.tracker.tracks(),
+            scan=state.scan.copy(), scan_angles=state.lidar.angles,
+            range_max=sim.lidar_config.range_max, robot=sim.robot_config,
+            control_dt=sim.config.control_dt, t=sim.t,
+        )  # fmt: skip
 
     def running_metrics(self) -> dict[str, float]:
         """The episode's SRPB metrics so far (tracked people), for display."""

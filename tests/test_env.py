@@ -347,3 +347,17 @@ def test_monitor_logs_episode_metrics(tmp_path):
     lines = (tmp_path / "run.monitor.csv").read_text().splitlines()
     assert lines[1].split(",")[3:] == list(keys)
     assert lines[2].split(",")[3:] == [str(info[k]) for k in keys]
+
+
+def test_knowledge_is_what_the_robot_knows():
+    env = make("SRPB-Crowd-v0")
+    env.reset(seed=2)
+    for _ in range(10):
+        env.step(np.array([0.5, 0.2], dtype=np.float32))
+    k = env.unwrapped.knowledge()
+    sim = env.unwrapped.sim
+    tracks = sim.robots[0].tracker.tracks()
+    assert np.array_equal(k.tracks.ids, tracks.ids) and np.array_equal(k.tracks.xy, tracks.xy)
+    assert not np.array_equal(k.tracks.xy, sim.world.people_xy[: len(k.tracks.xy)])  # noisy
+    assert np.array_equal(k.pose, sim.world.robot_pose[0]) and k.scan.shape == (181,)
+    assert k.goal_tolerance == 0.2 and k.control_dt == 0.1 and k.t == pytest.approx(1.0)

@@ -1,0 +1,80 @@
+"""One interface for everything that drives the robot.
+
+A planner sees what the robot knows, never the ground truth: the observation, and for
+classical planners a :class:`Knowledge` snapshot (static map, own state, goal, tracked
+people with covariances, lidar scan). It returns an action of the environment's action
+space (``Box(-1, 1)``; see :class:`srpb_gym.env.SRPBNavEnv`).
+"""
+
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+from srpb_gym.perception.tracker import Tracks
+from srpb_gym.sim.robot import RobotConfig
+
+
+@dataclass(frozen=True)
+class Knowledge:
+    """What the robot knows at one control step (arrays are read-only views; copy to keep).
+
+    ``walls`` (S, 4) segments and ``bounds`` (xmin, ymin, xmax, ymax) [m]: the static map.
+    ``pose`` (x, y, yaw), ``velocity`` measured body-frame (vx, vy, omega), ``command`` the
+    last command sent (vx, vy, omega), ``goal`` (x, y, yaw), ``goal_tolerance`` [m].
+    ``tracks``: the tracker's people (ids, xy, velocity, yaw, 2x2 covariance, ...).
+    ``scan`` lidar ranges [m] at ``scan_angles`` (relative to the heading), ``range_max``.
+    ``robot``: the base's limits; ``control_dt`` [s]; ``t`` [s] since the episode start.
+    """
+
+    walls: NDArray[np.float64]
+    bounds: tuple[float, float, float, float]
+    pose: NDArray[np.float64]
+    velocity: NDArray[np.float64]
+    command: NDArray[np.float64]
+    goal: NDArray[np.float64]
+    goal_tolerance: float
+    goal_yaw_tolerance: float
+    tracks: Tracks
+    scan: NDArray[np.float64]
+    scan_angles: NDArray[np.float64]
+    range_max: float
+    robot: RobotConfig
+    control_dt: float
+    t: float
+
+
+class Planner(ABC):
+    """A policy for the environment. ``reset`` starts an episode; ``act`` decides a step."""
+
+    name: ClassVar[str] = "planner"
+
+    def reset(self, knowledge: Knowledge) -> None:  # noqa: B027 - optional hook
+        """Start an episode (plan on the static map, clear state)."""
+
+    @abstractmethod
+    def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
+        """The action for this step."""
+
+
+def command_to_action(
+    vx: float, vy: float, omega: float, robot: RobotConfig
+) -> NDArray[np.float32]:
+    """The environment action that requests the body-frame command (vx, vy, omega)."""
+    lin = vx / robot.v_max if vx >= 0 else vx / -robot.v_min
+    rot = omega / robot.w_max
+    if robot.kinematics == "holonomic":
+        side = vy / robot.vy_max if robot.vy_max > 0 else 0.0
+        return np.clip(np.array([lin, side, rot], dtype=np.float32), -1.0, 1.0)
+    return np.clip(np.array([lin, rot], dtype=np.float32), -1.0, 1.0)
+
+
+def heading_error(knowledge: Knowledge, x: float, y: float) -> float:
+    """Angle from the robot's heading to the point (x, y), in (-pi, pi]."""
+    px, py, yaw = knowledge.pose
+    return math.remainder(math.atan2(y - py, x - px) - yaw, 2 * math.pi)
