@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/srpb-gym metrics --example
+	$(BIN)/srpb-gym eval
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

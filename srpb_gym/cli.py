@@ -4,11 +4,16 @@ Usage::
 
     srpb-gym metrics ROBOT_LOG [PEOPLE_LOG [GROUPS_LOG]] [--semantics S] [--preset P]
                      [--param NAME=VALUE ...] [--json]
+    srpb-gym eval [--env ID ...] [--planner NAME ...] [--policy PATH ...] [--episodes N]
+                  [--seed S] [--out DIR] [--workers N] [--video [K]] [--semantics S]
+                  [--preset P]
+    srpb-gym compare DIR [DIR ...] [--out DIR]
     srpb-gym --version
 
 Every subcommand is registered by one ``add_<name>_command(subparsers)`` function listed in
 :data:`COMMANDS`; it sets ``func`` (taking the parsed arguments, returning the exit status).
-Exit status: 0 on success, 2 on bad input (one line ``srpb-gym: error: ...`` on stderr).
+Exit status: 0 on success, 2 on bad input (one line ``srpb-gym: error: ...`` on stderr),
+130 when an evaluation is interrupted (Ctrl-C; what finished is kept).
 """
 
 from __future__ import annotations
@@ -154,8 +159,103 @@ def _json_number(value: float) -> float | str:
     return value
 
 
+# ---------------------------------------------------------------------------- eval
+def add_eval_command(subparsers: Any) -> None:
+    """Register ``eval``: run planners and policies on scenarios, write the results."""
+    from srpb_gym.metrics.params import PRESETS, SEMANTICS
+    from srpb_gym.registration import SCENARIO_IDS
+
+    p = subparsers.add_parser(
+        "eval",
+        help="evaluate planners and learned policies on scenarios",
+        description=(
+            "Run every planner on every scenario for N episodes (episode i uses seed S+i), "
+            "print one table per scenario (median [interquartile range] of every SRPB metric, "
+            "success, collision and timeout rates) and write episodes, tables, figures and "
+            "the configuration into --out. Without --env/--planner/--policy: "
+            "SRPB-Corridor-v0 with every registered planner, 5 episodes."
+        ),
+        epilog=f"environment ids: {', '.join(SCENARIO_IDS)}",
+    )
+    many = {"action": "extend", "nargs": "+"}
+    p.add_argument("--env", metavar="ID", **many, help="environment id(s)")
+    p.add_argument("--planner", metavar="NAME", **many, help="registered planner(s)")
+    p.add_argument("--policy", metavar="PATH", **many, default=[],
+                   help="stable-baselines3 model .zip file(s), named after the file")  # fmt: skip
+    p.add_argument("--policy-algo", default="PPO", metavar="ALGO",
+                   help="algorithm of the --policy files (default: PPO)")  # fmt: skip
+    p.add_argument("--episodes", type=int, default=5, metavar="N", help="per pair (default: 5)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="first seed (default: 0)")
+    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/eval-<time>)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="worker processes (default: 1)")  # fmt: skip
+    p.add_argument("--video", type=int, nargs="?", const=1, default=0, metavar="K",
+                   help="film the first K episodes of each pair (default K: 1)")  # fmt: skip
+    p.add_argument("--semantics", choices=SEMANTICS, default="paper",
+                   help="metric semantics (default: paper)")  # fmt: skip
+    p.add_argument("--preset", choices=tuple(PRESETS), default="paper",
+                   help="metric parameter preset (default: paper)")  # fmt: skip
+    p.set_defaults(func=run_eval)
+
+
+def run_eval(args: argparse.Namespace) -> int:
+    """Run the evaluation described by ``args``; 130 when interrupted."""
+    from srpb_gym.evaluation import resolve_config, run_evaluation
+
+    if args.video:
+        from srpb_gym.evaluation.figures import video_support
+
+        missing = video_support()
+        if missing:
+            raise InputError(missing, key="--video")
+    config = resolve_config(
+        args.env, args.planner, args.policy, policy_algo=args.policy_algo,
+        episodes=args.episodes, seed=args.seed, out=args.out, workers=args.workers,
+        video=args.video, semantics=args.semantics, preset=args.preset,
+        argv=getattr(args, "argv", ()),
+    )  # fmt: skip
+    try:
+        outcome = run_evaluation(config)
+    except KeyboardInterrupt:  # outside the episodes (set-up, figures)
+        print(f"{PROG}: interrupted; partial results in {config.out}", file=sys.stderr)
+        return 130
+    if outcome.text:
+        print(outcome.text)
+    if outcome.interrupted:
+        print(f"{PROG}: interrupted: {len(outcome.results)} of {outcome.planned} episodes "
+              f"finished; results so far in {config.out}", file=sys.stderr)  # fmt: skip
+        return 130
+    print(f"\nresults in {config.out}")
+    return 0
+
+
+# ---------------------------------------------------------------------------- compare
+def add_compare_command(subparsers: Any) -> None:
+    """Register ``compare``: merge earlier evaluations into one table per scenario."""
+    p = subparsers.add_parser(
+        "compare",
+        help="compare earlier evaluation runs",
+        description=(
+            "Merge the episodes.csv of earlier `srpb-gym eval` runs into one table per "
+            "scenario. A planner present in several runs is labelled PLANNER@RUN_FOLDER."
+        ),
+    )
+    p.add_argument("dirs", metavar="DIR", nargs="+", help="evaluation folder (or episodes.csv)")
+    p.add_argument("--out", metavar="DIR", help="also write the merged results and tables here")
+    p.set_defaults(func=run_compare)
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    """Print (and with ``--out`` write) the merged comparison tables."""
+    from srpb_gym.evaluation import compare_runs
+
+    text, _ = compare_runs(args.dirs, args.out)
+    print(text)
+    return 0
+
+
 # ---------------------------------------------------------------------------- main
-COMMANDS: list[Callable[[Any], None]] = [add_metrics_command]
+COMMANDS: list[Callable[[Any], None]] = [add_metrics_command, add_eval_command, add_compare_command]
 """Functions registering one subcommand each on the subparsers object."""
 
 
@@ -177,6 +277,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
+        args.argv = tuple(sys.argv[1:] if argv is None else argv)
     except SystemExit as exc:  # --help, --version and usage errors
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     if getattr(args, "func", None) is None:

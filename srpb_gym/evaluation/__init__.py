@@ -1,0 +1,35 @@
+"""The evaluation harness: planners and learned policies on the srpb-gym scenarios, scored
+by the SRPB metrics, compared in tables like the SRPB paper's Table 4.
+
+Quick use::
+
+    from srpb_gym.evaluation import resolve_config, run_evaluation
+    config = resolve_config(["SRPB-Corridor-v0"], ["go-to-goal"], episodes=5, out="runs/x")
+    outcome = run_evaluation(config)
+    print(outcome.text)
+
+Episode ``i`` uses ``env.reset(seed=seed + i)``, so any episode can be replayed alone; the
+planner's ``act`` is timed and its time handed to ``env.unwrapped.set_planning_time``; runs
+spread over worker processes give the same episodes. ``srpb-gym eval`` and
+``srpb-gym compare`` are the command-line front ends. matplotlib, torch, stable-baselines3
+and pygame are imported only by the functions that need them.
+"""
+
+from srpb_gym.evaluation.harness import RunOutcome, compare_runs, run_evaluation
+from srpb_gym.evaluation.runner import EpisodeResult, Task, run_episode
+from srpb_gym.evaluation.spec import EvalConfig, PlannerSpec, resolve_config
+from srpb_gym.evaluation.stats import read_episodes, summarize
+
+__all__ = [
+    "EpisodeResult",
+    "EvalConfig",
+    "PlannerSpec",
+    "RunOutcome",
+    "Task",
+    "compare_runs",
+    "read_episodes",
+    "resolve_config",
+    "run_episode",
+    "run_evaluation",
+    "summarize",
+]

@@ -1,0 +1,278 @@
+"""The evaluation run and the comparison of runs, with every file they write.
+
+An evaluation writes into its output folder ``config.json`` (the resolved configuration),
+``command.txt``, ``versions.json``, ``episodes.csv`` (a row per episode, written as each one
+finishes), ``episodes/<env id>/<planner>/`` (SRPB native logs and ``.npz`` records),
+``summary.json``, ``table_<env>.md|.csv|.tex``, ``trajectories_<env>_<planner>.png``,
+``bars_<env>.png`` and, when asked, ``videos/``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shlex
+import sys
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any
+
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation import stats
+from srpb_gym.evaluation.runner import EpisodeResult, run_tasks, tasks_of
+from srpb_gym.evaluation.spec import EvalConfig, jsonable
+
+VERSIONED: tuple[tuple[str, str], ...] = (
+    ("srpb-gym", "srpb-gym"), ("numpy", "numpy"), ("scipy", "scipy"), ("numba", "numba"),
+    ("gymnasium", "gymnasium"), ("pymunk", "pymunk"), ("matplotlib", "matplotlib"),
+    ("stable-baselines3", "stable_baselines3"), ("torch", "torch"),
+    ("imageio", "imageio"), ("pygame-ce", "pygame-ce"), ("tqdm", "tqdm"),
+)  # fmt: skip
+"""(name in versions.json, distribution name); absent distributions are left out."""
+
+
+@dataclass
+class RunOutcome:
+    """What a run produced: its finished episodes (canonical order), whether it was
+    interrupted, the tables as printed and every file written (joined with ``config.out``)."""
+
+    config: EvalConfig
+    results: list[EpisodeResult]
+    interrupted: bool
+    text: str = ""
+    files: list[str] = field(default_factory=list)
+
+    @property
+    def planned(self) -> int:
+        return len(self.config.envs) * len(self.config.planners) * self.config.episodes
+
+
+def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None) -> RunOutcome:
+    """Run every episode of ``config`` and write every artifact into ``config.out``.
+
+    Ctrl-C stops the run: the finished episodes stay on disk with their CSV rows, the
+    summary and tables of what finished are written (figures are not) and the outcome says
+    ``interrupted``. ``log`` receives one-line warnings (a missing plotting library).
+    """
+    log = log or (lambda line: print(line, file=sys.stderr))
+    out = config.out
+    files, resolved = write_run_info(config)
+    results: list[EpisodeResult] = []
+    writer = stats.EpisodeWriter(os.path.join(out, "episodes.csv"))
+    tasks = tasks_of(config)
+    bar = _progress(len(tasks))
+    try:
+        interrupted = run_tasks(config, tasks, lambda r: _record(r, results, writer, bar))
+    finally:
+        writer.close()
+        bar.close()
+    order = {(t.env, config.planners[t.planner].name, t.seed): i for i, t in enumerate(tasks)}
+    results.sort(key=lambda r: order[(r.env, r.planner, r.seed)])
+    stats.write_episodes(writer.path, results)
+    outcome = RunOutcome(config, results, interrupted, files=[*files, writer.path])
+    outcome.files += _write_summary(outcome)
+    if not interrupted and results:
+        outcome.files += draw_figures(config, resolved, results, log)
+    return outcome
+
+
+def _record(result: EpisodeResult, results: list, writer: stats.EpisodeWriter, bar: Any) -> None:
+    results.append(result)
+    writer.write(result)
+    bar.set_postfix_str(f"{result.env} {result.planner}", refresh=False)
+    bar.update(1)
+
+
+def _progress(total: int) -> Any:
+    """A tqdm bar on stderr (a silent stand-in without tqdm)."""
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return _NoBar()
+    return tqdm(total=total, file=sys.stderr, unit="episode", desc="eval", dynamic_ncols=True)
+
+
+class _NoBar:
+    def set_postfix_str(self, *args: Any, **kwargs: Any) -> None: ...
+    def update(self, n: int = 1) -> None: ...
+    def close(self) -> None: ...
+
+
+def _write_summary(outcome: RunOutcome) -> list[str]:
+    """``summary.json`` and the tables of the finished episodes."""
+    config, out = outcome.config, outcome.config.out
+    summary = stats.summarize(outcome.results)
+    doc = {"interrupted": outcome.interrupted, "episodes_planned": outcome.planned,
+           "episodes_finished": len(outcome.results), "semantics": config.semantics,
+           "preset": config.preset, "results": summary}  # fmt: skip
+    path = os.path.join(out, "summary.json")
+    write_json(path, doc)
+    outcome.text = stats.tables_text(summary)
+    return [path, *stats.write_tables(summary, out)]
+
+
+def write_json(path: str, doc: Any) -> None:
+    """``doc`` as indented JSON (non-finite floats become ``null``)."""
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(jsonable(doc), f, indent=2, allow_nan=False)
+        f.write("\n")
+
+
+def write_run_info(config: EvalConfig) -> tuple[list[str], dict[str, Any]]:
+    """``config.json``, ``command.txt`` and ``versions.json``; returns their paths and the
+    resolved configuration."""
+    paths = [os.path.join(config.out, n) for n in ("config.json", "command.txt", "versions.json")]
+    resolved = resolved_config(config)
+    write_json(paths[0], resolved)
+    with open(paths[1], "w", encoding="utf-8") as f:
+        f.write(shlex.join(["srpb-gym", *config.argv]) + "\n")
+    write_json(paths[2], versions())
+    return paths, resolved
+
+
+def resolved_config(config: EvalConfig) -> dict[str, Any]:
+    """Everything that defines the run, as plain data."""
+    import gymnasium as gym
+
+    envs = []
+    for env_id in config.envs:
+        env = gym.make(env_id, **config.env_kwargs(env_id))
+        base = env.unwrapped
+        envs.append({"id": env_id, "scenario": base.scenario.name,
+                     "kwargs": {**gym.spec(env_id).kwargs, **config.env_kwargs(env_id)},
+                     "max_episode_steps": gym.spec(env_id).max_episode_steps,
+                     "metric_params": base.params.as_dict()})  # fmt: skip
+        env.close()
+    return {
+        "envs": envs,
+        "planners": [spec.describe() for spec in config.planners],
+        "episodes": config.episodes,
+        "seed": config.seed,
+        "seeds": config.seeds,
+        "semantics": config.semantics,
+        "preset": config.preset,
+        "workers": config.workers,
+        "video": config.video,
+        "out": config.out,
+        "record_dirs": "episodes/<env id>/<planner>/",
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }
+
+
+def versions() -> dict[str, str]:
+    """Python, the platform and the installed version of each package of :data:`VERSIONED`."""
+    out = {"python": platform.python_version(), "platform": platform.platform()}
+    for key, dist in VERSIONED:
+        try:
+            out[key] = metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            if key == "srpb-gym":
+                from srpb_gym import __version__
+
+                out[key] = __version__
+    return out
+
+
+def draw_figures(
+    config: EvalConfig, resolved: dict[str, Any], results: Sequence[EpisodeResult], log: Callable
+) -> list[str]:
+    """Trajectory plots per (env, planner) and a bar chart per env (``resolved``: the
+    resolved configuration); skipped with a warning when matplotlib is missing."""
+    from srpb_gym.evaluation import figures
+
+    try:
+        figures.pyplot()
+    except ImportError as exc:
+        log(f"srpb-gym: warning: {exc}; no figures written")
+        return []
+    envs = {e["id"]: e for e in resolved["envs"]}
+    paths = []
+    for env_id, planners in stats.group(results).items():
+        for planner, rows in planners.items():
+            path = os.path.join(config.out, f"trajectories_{env_id}_{planner}.png")
+            _trajectories(config, envs[env_id], rows, f"{env_id}: {planner} ({len(rows)} "
+                          "episodes)", path)  # fmt: skip
+            paths.append(path)
+        summary = stats.summarize([r for rows in planners.values() for r in rows])[env_id]
+        path = os.path.join(config.out, f"bars_{env_id}.png")
+        figures.bar_chart(summary, f"{env_id}: median and interquartile range", path)
+        paths.append(path)
+    return paths
+
+
+def _trajectories(config: EvalConfig, env: dict, rows: list, title: str, path: str) -> None:
+    from srpb_gym.evaluation import figures
+    from srpb_gym.metrics import MetricParams, SRPBMetricWarning
+    from srpb_gym.metrics.io_npz import load_record
+    from srpb_gym.scenarios import load_scenario
+
+    records = [load_record(os.path.join(config.out, r.record)) for r in rows]
+    walls = load_scenario(env["scenario"]).walls
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", SRPBMetricWarning)
+        figures.trajectory_plot(records, walls, title, path, MetricParams(**env["metric_params"]),
+                              config.semantics)  # fmt: skip
+
+
+def compare_runs(dirs: Sequence[str], out: str | None = None) -> tuple[str, list[str]]:
+    """Merge the ``episodes.csv`` of earlier runs into one table per scenario. A planner
+    found in more than one run is labelled ``<planner>@<run folder>``. With ``out``, also
+    writes the merged ``episodes.csv``, ``summary.json``, the tables and bar charts there.
+    Returns the printed text and the files written."""
+    runs = []
+    for d in dirs:
+        path = os.path.join(d, "episodes.csv") if os.path.isdir(d) else d
+        if not os.path.isfile(path):
+            raise InputError("no episodes.csv here (not an evaluation folder)", d)
+        runs.append((os.path.basename(os.path.abspath(os.path.dirname(path) or ".")),
+                     stats.read_episodes(path)))  # fmt: skip
+    labels = [label for label, _ in runs]
+    runs = [(label if labels.count(label) == 1 else f"{label}#{i + 1}", rows)
+            for i, (label, rows) in enumerate(runs)]  # fmt: skip
+    merged = _label_duplicates(runs)
+    if not merged:
+        raise InputError("the runs hold no episode", key="compare")
+    summary = stats.summarize(merged)
+    text = stats.tables_text(summary)
+    if out is None:
+        return text, []
+    from srpb_gym.evaluation.spec import check_out_dir
+
+    check_out_dir(out)
+    files = [os.path.join(out, "episodes.csv"), os.path.join(out, "summary.json")]
+    stats.write_episodes(files[0], merged)
+    write_json(files[1], {"runs": list(dirs), "results": summary})
+    return text, files + stats.write_tables(summary, out) + _compare_bars(summary, out)
+
+
+def _label_duplicates(runs: list[tuple[str, list[EpisodeResult]]]) -> list[EpisodeResult]:
+    seen: dict[tuple[str, str], int] = {}
+    for _, rows in runs:
+        for pair in {(r.env, r.planner) for r in rows}:
+            seen[pair] = seen.get(pair, 0) + 1
+    merged = []
+    for label, rows in runs:
+        for r in rows:
+            if seen[(r.env, r.planner)] > 1:
+                r.planner = f"{r.planner}@{label}"
+            merged.append(r)
+    return merged
+
+
+def _compare_bars(summary: stats.Summary, out: str) -> list[str]:
+    from srpb_gym.evaluation import figures
+
+    try:
+        figures.pyplot()
+    except ImportError:
+        return []
+    paths = []
+    for env_id, planners in summary.items():
+        path = os.path.join(out, f"bars_{env_id}.png")
+        figures.bar_chart(planners, f"{env_id}: median and interquartile range", path)
+        paths.append(path)
+    return paths

@@ -1,0 +1,254 @@
+"""Running episodes: one environment and one planner per (env id, planner) pair, in this
+process or spread over worker processes, with identical results either way.
+
+Episode ``i`` of a pair is ``env.reset(seed=config.seed + i)``. The planner's computation
+time is measured around ``planner.act`` with :func:`time.perf_counter` and handed to the
+environment with ``set_planning_time`` before each step, for classical planners and learned
+policies alike. Every finished episode is reported at once (its CSV row is written by the
+caller), so an interrupted run keeps what finished.
+"""
+
+from __future__ import annotations
+
+import glob
+import multiprocessing
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any
+
+from srpb_gym.evaluation.spec import EvalConfig
+from srpb_gym.metrics import METRIC_NAMES
+from srpb_gym.planners import Planner
+
+
+@dataclass(frozen=True)
+class Task:
+    """Episode ``index`` (seed ``seed``) of environment ``env`` with planner number
+    ``planner`` of the configuration."""
+
+    env: str
+    planner: int
+    index: int
+    seed: int
+
+
+@dataclass
+class EpisodeResult:
+    """One finished episode: its outcome and every SRPB metric (``info["srpb/<m>"]`` of
+    the last step). ``record``: the ``.npz`` record, relative to the output folder."""
+
+    env: str
+    planner: str
+    seed: int
+    is_success: bool
+    collision: bool
+    timeout: bool
+    metrics: dict[str, float]
+    steps: int = 0
+    record: str = ""
+    video: str = ""
+
+
+def tasks_of(config: EvalConfig) -> list[Task]:
+    """Every episode of the run in the canonical order: env, planner, seed."""
+    return [Task(env, p, i, seed) for env in config.envs for p in range(len(config.planners))
+            for i, seed in enumerate(config.seeds)]  # fmt: skip
+
+
+def run_episode(
+    env: Any, planner: Planner, seed: int, on_frame: Callable[[Any], None] | None = None
+) -> dict[str, Any]:
+    """Drive one episode of ``env`` with ``planner``; the planner's ``act`` is timed and
+    its time passed to ``set_planning_time``. ``on_frame`` receives ``env.render()`` after
+    the reset and every step. Returns the last ``info``, ``collision`` (any step),
+    ``timeout`` (truncated, not terminated) and ``steps``."""
+    base = env.unwrapped
+    obs, info = env.reset(seed=seed)
+    planner.reset(base.knowledge())
+    if on_frame is not None:
+        on_frame(env.render())
+    collided, steps = False, 0
+    while True:
+        knowledge = base.knowledge()
+        started = time.perf_counter()
+        action = planner.act(obs, knowledge)
+        base.set_planning_time(time.perf_counter() - started)
+        obs, _, terminated, truncated, info = env.step(action)
+        collided |= bool(info["collision"])
+        steps += 1
+        if on_frame is not None:
+            on_frame(env.render())
+        if terminated or truncated:
+            break
+    return {"info": info, "collision": collided, "timeout": bool(truncated and not terminated),
+            "steps": steps}  # fmt: skip
+
+
+class Workspace:
+    """The environments and planners of one process, built on first use and reused."""
+
+    def __init__(self, config: EvalConfig) -> None:
+        self.config = config
+        self._pairs: dict[tuple[str, int], tuple[Any, Planner]] = {}
+
+    def pair(self, env_id: str, planner: int) -> tuple[Any, Planner]:
+        """The environment and planner of one (env id, planner number) pair."""
+        key = (env_id, planner)
+        if key not in self._pairs:
+            import gymnasium as gym
+
+            spec = self.config.planners[planner]
+            env = gym.make(env_id, **self.config.env_kwargs(env_id, spec.name))
+            self._pairs[key] = (env, spec.build())
+        return self._pairs[key]
+
+    def run(self, task: Task) -> EpisodeResult:
+        """Run one episode and return its result (writing its video if it is filmed)."""
+        env, planner = self.pair(task.env, task.planner)
+        name = self.config.planners[task.planner].name
+        video = None
+        if task.index < self.config.video:
+            from srpb_gym.evaluation.figures import VideoWriter
+
+            stem = os.path.join(self.config.out, "videos", f"{task.env}_{name}_seed{task.seed}")
+            video = VideoWriter(stem, int(env.unwrapped.metadata.get("render_fps", 10)))
+        out = run_episode(env, planner, task.seed, None if video is None else video.add)
+        info, base = out["info"], env.unwrapped
+        record = os.path.join(base.record_dir, f"{base.episode_name()}.npz")
+        result = EpisodeResult(
+            task.env, name, task.seed, bool(info["is_success"]), out["collision"], out["timeout"],
+            {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
+            os.path.relpath(record, self.config.out),
+        )  # fmt: skip
+        if video is not None:
+            result.video = os.path.relpath(video.close(), self.config.out)
+        return result
+
+    def close(self) -> None:
+        """Close every environment."""
+        for env, _ in self._pairs.values():
+            env.close()
+        self._pairs.clear()
+
+
+# ------------------------------------------------------------------ worker processes
+_WORKSPACE: Workspace | None = None
+
+
+def _init_worker(config: EvalConfig) -> None:
+    """Worker start: Ctrl-C is the parent's to handle; one thread per numeric library."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ.setdefault(var, "1")
+    global _WORKSPACE
+    _WORKSPACE = Workspace(config)
+
+
+def _run_in_worker(task: Task) -> EpisodeResult:
+    assert _WORKSPACE is not None, "worker not initialised"
+    return _WORKSPACE.run(task)
+
+
+def _context() -> Any:
+    methods = multiprocessing.get_all_start_methods()
+    return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+
+
+def run_tasks(
+    config: EvalConfig, tasks: Sequence[Task], on_result: Callable[[EpisodeResult], None]
+) -> bool:
+    """Run ``tasks`` (``config.workers`` processes), calling ``on_result`` as each episode
+    finishes. Returns ``True`` if interrupted (Ctrl-C); files of unfinished episodes are
+    then removed, so what is on disk is exactly the finished episodes."""
+    done: set[Task] = set()
+
+    def finish(task: Task, result: EpisodeResult) -> None:
+        done.add(task)
+        on_result(result)
+
+    try:
+        if config.workers == 1 or len(tasks) == 1:
+            _run_here(config, tasks, finish)
+        else:
+            _run_pool(config, tasks, finish)
+    except KeyboardInterrupt:
+        remove_unfinished(config, [t for t in tasks if t not in done])
+        return True
+    return False
+
+
+def _run_here(config: EvalConfig, tasks: Sequence[Task], finish: Callable) -> None:
+    workspace = Workspace(config)
+    try:
+        for task in tasks:
+            finish(task, workspace.run(task))
+    finally:
+        workspace.close()
+
+
+def _run_pool(config: EvalConfig, tasks: Sequence[Task], finish: Callable) -> None:
+    workers = min(config.workers, len(tasks))
+    with _sigint_ignored():
+        pool = ProcessPoolExecutor(workers, _context(), _init_worker, (config,))
+        pending: dict[Future, Task] = {pool.submit(_run_in_worker, t): t for t in tasks}
+    try:
+        for future, task in _completed(pending):
+            finish(task, future.result())
+    except BaseException:
+        _stop_pool(pool)
+        for future, task in pending.items():  # episodes whose result arrived meanwhile
+            if future.done() and not future.cancelled() and future.exception() is None:
+                finish(task, future.result())
+        raise
+    pool.shutdown(wait=True)
+
+
+@contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore Ctrl-C for a moment: worker processes started meanwhile inherit it and leave
+    the interruption to this process."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+
+
+def _completed(pending: dict[Future, Task]) -> Iterator[tuple[Future, Task]]:
+    while pending:
+        finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
+        for future in finished:
+            yield future, pending.pop(future)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """End the workers now (an episode cut short leaves no result) and drop queued ones."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    for process in processes:
+        process.terminate()
+    for process in processes:
+        process.join(timeout=10)
+    pool.shutdown(wait=True, cancel_futures=True)
+
+
+def remove_unfinished(config: EvalConfig, tasks: Sequence[Task]) -> None:
+    """Delete any file an unfinished episode may have left (a record cut short)."""
+    from srpb_gym.registration import SCENARIO_IDS
+
+    for task in tasks:
+        name = config.planners[task.planner].name
+        folder = glob.escape(config.record_dir(task.env, name))
+        videos = glob.escape(os.path.join(config.out, "videos"))
+        patterns = (os.path.join(folder, f"{SCENARIO_IDS[task.env]}_seed{task.seed}[._]*"),
+                    os.path.join(videos, f"{task.env}_{name}_seed{task.seed}.*"))  # fmt: skip
+        for path in (p for pattern in patterns for p in glob.glob(pattern)):
+            os.remove(path)

@@ -1,0 +1,254 @@
+"""Per-episode rows, their statistics and the comparison tables.
+
+``episodes.csv`` holds one row per episode: ``env``, ``planner``, ``seed``, ``is_success``,
+``collision``, ``timeout`` (0/1), then every metric of :data:`METRIC_NAMES` at full
+precision (``repr`` of the float, ``nan`` when undefined). The tables follow the SRPB
+paper's Table 4: one per scenario, rows = metrics with units (after the episode count and
+the success, collision and timeout rates in %), columns = planners, cells = median over the
+episodes with the interquartile range, ``12.3 [10.1-14.0]``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation.runner import EpisodeResult
+from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
+
+CSV_COLUMNS: tuple[str, ...] = (
+    "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES,
+)  # fmt: skip
+OUTCOMES: tuple[tuple[str, str], ...] = (
+    ("success", "is_success"), ("collision", "collision"), ("timeout", "timeout"),
+)  # fmt: skip
+
+Summary = dict[str, dict[str, dict[str, Any]]]
+"""env id -> planner -> statistics (see :func:`summarize`)."""
+
+
+# ---------------------------------------------------------------------------- CSV
+def csv_row(result: EpisodeResult) -> list[str]:
+    """The ``episodes.csv`` row of one episode."""
+    flags = [str(int(v)) for v in (result.is_success, result.collision, result.timeout)]
+    values = [repr(float(result.metrics[m])) for m in METRIC_NAMES]
+    return [result.env, result.planner, str(result.seed), *flags, *values]
+
+
+class EpisodeWriter:
+    """``episodes.csv``, one row appended and flushed as each episode finishes."""
+
+    def __init__(self, path: str) -> None:
+        self.path = path
+        self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
+        self._csv = csv.writer(self._file)
+        self._csv.writerow(CSV_COLUMNS)
+        self._file.flush()
+
+    def write(self, result: EpisodeResult) -> None:
+        self._csv.writerow(csv_row(result))
+        self._file.flush()
+
+    def close(self) -> None:
+        self._file.close()
+
+
+def write_episodes(path: str, results: Iterable[EpisodeResult]) -> None:
+    """Write ``episodes.csv`` at once (replacing the file atomically)."""
+    tmp = f"{path}.tmp"
+    with open(tmp, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(CSV_COLUMNS)
+        writer.writerows(csv_row(r) for r in results)
+    os.replace(tmp, path)
+
+
+def read_episodes(path: str) -> list[EpisodeResult]:
+    """The rows of an ``episodes.csv``; :class:`InputError` naming the file and line."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.reader(f))
+    except OSError as exc:
+        raise InputError(exc.strerror or str(exc), path) from None
+    if not rows:
+        raise InputError("empty file (expected a header line)", path, line=1)
+    header = rows[0]
+    missing = [c for c in CSV_COLUMNS[:6] if c not in header]
+    if missing:
+        raise InputError(f"missing column(s) {', '.join(missing)}", path, line=1)
+    col = {name: i for i, name in enumerate(header)}
+    return [_parse_row(row, col, path, n) for n, row in enumerate(rows[1:], start=2) if row]
+
+
+def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> EpisodeResult:
+    if len(row) != len(col):
+        raise InputError(f"expected {len(col)} values, got {len(row)}", path, line)
+    try:
+        flags = [bool(int(row[col[c]])) for c in ("is_success", "collision", "timeout")]
+        metrics = {m: float(row[col[m]]) if m in col else math.nan for m in METRIC_NAMES}
+        seed = int(row[col["seed"]])
+    except ValueError as exc:
+        raise InputError(str(exc), path, line) from None
+    return EpisodeResult(row[col["env"]], row[col["planner"]], seed, *flags, metrics)
+
+
+# ---------------------------------------------------------------------------- statistics
+def group(results: Iterable[EpisodeResult]) -> dict[str, dict[str, list[EpisodeResult]]]:
+    """Results by env id, then planner, in order of first appearance."""
+    out: dict[str, dict[str, list[EpisodeResult]]] = {}
+    for r in results:
+        out.setdefault(r.env, {}).setdefault(r.planner, []).append(r)
+    return out
+
+
+def describe(values: Sequence[float]) -> dict[str, float | int | None]:
+    """Median, quartiles (linear interpolation), mean, std, min, max of the finite values;
+    ``n``: how many are finite. Statistics of no value are ``None``."""
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    if x.size == 0:
+        return {"n": 0, **dict.fromkeys(("median", "q1", "q3", "mean", "std", "min", "max"))}
+    q1, median, q3 = np.percentile(x, [25.0, 50.0, 75.0])
+    return {"n": int(x.size), "median": float(median), "q1": float(q1), "q3": float(q3),
+            "mean": float(x.mean()), "std": float(x.std()), "min": float(x.min()),
+            "max": float(x.max())}  # fmt: skip
+
+
+def summarize(results: Iterable[EpisodeResult]) -> Summary:
+    """Per env and planner: ``episodes``, ``success_rate``, ``collision_rate``,
+    ``timeout_rate`` (%) and ``metrics`` (name -> :func:`describe`)."""
+    summary: Summary = {}
+    for env, planners in group(results).items():
+        summary[env] = {}
+        for planner, rows in planners.items():
+            entry: dict[str, Any] = {"episodes": len(rows)}
+            for label, attr in OUTCOMES:
+                entry[f"{label}_rate"] = 100.0 * sum(getattr(r, attr) for r in rows) / len(rows)
+            entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
+            summary[env][planner] = entry
+    return summary
+
+
+# ---------------------------------------------------------------------------- tables
+def number(value: float | None) -> str:
+    """A compact number: 3 significant digits, at most 3 decimals, ``n/a`` for none."""
+    if value is None or not math.isfinite(value):
+        return "n/a"
+    if value == 0:
+        return "0"
+    decimals = min(3, max(0, 2 - math.floor(math.log10(abs(value)))))
+    text = f"{value:.{decimals}f}"
+    return "0" if float(text) == 0 else text
+
+
+def rate(value: float) -> str:
+    """A percentage with at most one decimal: ``100``, ``33.3``, ``0``."""
+    return f"{value:.1f}".rstrip("0").rstrip(".")
+
+
+def cell(stats: dict[str, Any]) -> str:
+    """``median [q1-q3]`` (``[q1, q3]`` when q1 is negative)."""
+    if stats["median"] is None:
+        return "n/a"
+    q1, q3 = number(stats["q1"]), number(stats["q3"])
+    iqr = f"[{q1}-{q3}]" if stats["q1"] >= 0 else f"[{q1}, {q3}]"
+    return f"{number(stats['median'])} {iqr}"
+
+
+def table(planners: dict[str, dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of one scenario's table (cells as text)."""
+    names = list(planners)
+    rows = [["episodes", "-", *(str(planners[p]["episodes"]) for p in names)]]
+    rows += [[label, "%", *(rate(planners[p][f"{label}_rate"]) for p in names)]
+             for label, _ in OUTCOMES]  # fmt: skip
+    rows += [[m, METRIC_UNITS[m], *(cell(planners[p]["metrics"][m]) for p in names)]
+             for m in METRIC_NAMES]  # fmt: skip
+    return ["metric", "unit", *names], rows
+
+
+def format_text(title: str, header: list[str], rows: list[list[str]]) -> str:
+    """An aligned plain-text table under ``title``."""
+    widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
+    lines = [title, "  ".join(h.ljust(w) for h, w in zip(header, widths)).rstrip()]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows]
+    return "\n".join(lines)
+
+
+def format_markdown(title: str, header: list[str], rows: list[list[str]]) -> str:
+    """A Markdown table under a heading."""
+    lines = [f"## {title}", "", "| " + " | ".join(header) + " |"]
+    lines.append("| --- | --- | " + " | ".join("---:" for _ in header[2:]) + " |")
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def latex_escape(text: str) -> str:
+    """``text`` for LaTeX: special characters escaped, ``^2`` as a superscript."""
+    out = "".join("\\" + ch if ch in "&%$#_{}" else ch for ch in text)
+    return out.replace("^2", "$^2$").replace("~", "\\textasciitilde{}")
+
+
+def format_latex(title: str, header: list[str], rows: list[list[str]]) -> str:
+    """A ``table`` environment (booktabs rules) with ``title`` as its caption."""
+    spec = "ll" + "r" * (len(header) - 2)
+    lines = ["% needs \\usepackage{booktabs}", "\\begin{table}[t]", "\\centering",
+             f"\\caption{{{latex_escape(title)}}}", f"\\begin{{tabular}}{{{spec}}}",
+             "\\toprule", " & ".join(latex_escape(h) for h in header) + " \\\\",
+             "\\midrule"]  # fmt: skip
+    lines += [" & ".join(latex_escape(c) for c in r) + " \\\\" for r in rows]
+    lines += ["\\bottomrule", "\\end{tabular}", "\\end{table}"]
+    return "\n".join(lines) + "\n"
+
+
+def table_csv(path: str, planners: dict[str, dict[str, Any]]) -> None:
+    """The table as numbers: metric, unit, then median, q1, q3 per planner (rates and
+    counts in the median column)."""
+    names = list(planners)
+    header = ["metric", "unit"] + [f"{p} {s}" for p in names for s in ("median", "q1", "q3")]
+    rows = [["episodes", "-", *(v for p in names for v in (planners[p]["episodes"], "", ""))]]
+    rows += [[label, "%", *(v for p in names for v in (planners[p][f"{label}_rate"], "", ""))]
+             for label, _ in OUTCOMES]  # fmt: skip
+    for m in METRIC_NAMES:
+        stats = [planners[p]["metrics"][m] for p in names]
+        rows.append([m, METRIC_UNITS[m], *(_blank(s[k]) for s in stats
+                                          for k in ("median", "q1", "q3"))])  # fmt: skip
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        csv.writer(f).writerows([header, *rows])
+
+
+def _blank(value: float | None) -> Any:
+    return "" if value is None else value
+
+
+def title_of(env: str, planners: dict[str, dict[str, Any]]) -> str:
+    counts = sorted({p["episodes"] for p in planners.values()})
+    episodes = "/".join(map(str, counts))
+    return f"{env}: median [interquartile range] over {episodes} episodes per planner"
+
+
+def tables_text(summary: Summary) -> str:
+    """Every scenario's table as aligned text, one after the other."""
+    return "\n\n".join(format_text(title_of(env, planners), *table(planners))
+                        for env, planners in summary.items())  # fmt: skip
+
+
+def write_tables(summary: Summary, out: str) -> list[str]:
+    """Write ``table_<env>.md``, ``.csv`` and ``.tex`` into ``out``; returns the paths."""
+    paths = []
+    for env, planners in summary.items():
+        header, rows = table(planners)
+        title = title_of(env, planners)
+        base = os.path.join(out, f"table_{env}")
+        for suffix, text in ((".md", format_markdown(title, header, rows)),
+                             (".tex", format_latex(title, header, rows))):  # fmt: skip
+            with open(base + suffix, "w", encoding="utf-8") as f:
+                f.write(text)
+        table_csv(base + ".csv", planners)
+        paths += [base + s for s in (".md", ".csv", ".tex")]
+    return paths

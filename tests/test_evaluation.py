@@ -1,0 +1,263 @@
+"""``srpb-gym eval`` and ``srpb-gym compare``, end to end."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from srpb_gym.cli import main
+from srpb_gym.evaluation import resolve_config
+from srpb_gym.evaluation.stats import CSV_COLUMNS, cell
+from srpb_gym.metrics import METRIC_NAMES, MetricParams, evaluate
+from srpb_gym.metrics.io_npz import load_record
+from srpb_gym.planners import PLANNERS, GoToGoal
+
+ENV = "SRPB-Corridor-v0"
+TIMING = ("m_cef", "m_cre")
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def _eval(out: Path, *extra: str) -> int:
+    return main(["eval", "--env", ENV, "--planner", "go-to-goal", "--out", str(out), *extra])
+
+
+def _rows(out: Path) -> list[dict[str, str]]:
+    with open(out / "episodes.csv", newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _without_timing(rows: list[dict[str, str]]) -> list[dict[str, str]]:
+    return [{k: v for k, v in r.items() if k not in TIMING} for r in rows]
+
+
+def _same(a: float, b: float) -> bool:
+    return a == b or (math.isnan(a) and math.isnan(b))
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("eval") / "run"
+    assert _eval(out, "--episodes", "2") == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def run_workers(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("eval") / "workers"
+    assert _eval(out, "--episodes", "2", "--workers", "2") == 0
+    return out
+
+
+# ---------------------------------------------------------------------------- artifacts
+def test_every_artifact_is_written(run):
+    rows = _rows(run)
+    with open(run / "episodes.csv", newline="") as f:
+        assert next(csv.reader(f)) == list(CSV_COLUMNS)
+    assert [(r["env"], r["planner"], r["seed"]) for r in rows] == [
+        (ENV, "go-to-goal", "0"),
+        (ENV, "go-to-goal", "1"),
+    ]
+    assert all(r[k] in ("0", "1") for r in rows for k in ("is_success", "collision", "timeout"))
+
+    summary = json.loads((run / "summary.json").read_text())
+    entry = summary["results"][ENV]["go-to-goal"]
+    assert summary["episodes_finished"] == 2 and summary["interrupted"] is False
+    assert {"episodes", "success_rate", "collision_rate", "timeout_rate"} <= set(entry)
+    assert set(entry["metrics"]) == set(METRIC_NAMES)
+    assert {"median", "q1", "q3", "n"} <= set(entry["metrics"]["m_psi"])
+
+    config = json.loads((run / "config.json").read_text())
+    assert {"envs", "planners", "episodes", "seeds", "semantics", "preset"} <= set(config)
+    assert config["seeds"] == [0, 1] and config["envs"][0]["id"] == ENV
+    assert config["planners"][0]["params"] == {"k_turn": 2.0, "slow_radius": 1.0}
+
+    command = (run / "command.txt").read_text().split()
+    assert command[:2] == ["srpb-gym", "eval"] and "--episodes" in command
+    versions = json.loads((run / "versions.json").read_text())
+    for key in ("python", "srpb-gym", "numpy", "scipy", "numba", "gymnasium", "pymunk"):
+        assert versions[key]
+
+    for png in (f"trajectories_{ENV}_go-to-goal.png", f"bars_{ENV}.png"):
+        assert (run / png).read_bytes()[:8] == PNG
+    for seed in (0, 1):
+        folder = run / "episodes" / ENV / "go-to-goal"
+        for suffix in ("_robot.txt", "_people.txt", "_groups.txt", ".npz"):
+            assert (folder / f"corridor_seed{seed}{suffix}").is_file()
+
+
+def test_tables_in_three_formats(run, capsys):
+    lines = (run / f"table_{ENV}.md").read_text().splitlines()
+    assert lines[2] == "| metric | unit | go-to-goal |"
+    body = [line.split(" | ")[0].strip("| ") for line in lines[4:]]
+    assert body == ["episodes", "success", "collision", "timeout", *METRIC_NAMES]
+    tex = (run / f"table_{ENV}.tex").read_text()
+    assert "\\begin{tabular}{llr}" in tex and "\\end{tabular}" in tex
+    assert "m\\_psi & \\% &" in tex and tex.count("\\\\") == 1 + 4 + len(METRIC_NAMES)
+    with open(run / f"table_{ENV}.csv", newline="") as f:
+        table = list(csv.reader(f))
+    assert table[0] == ["metric", "unit", "go-to-goal median", "go-to-goal q1", "go-to-goal q3"]
+    assert [r[0] for r in table[5:]] == list(METRIC_NAMES)
+    assert cell({"median": 12.3, "q1": 10.1, "q3": 14.0}) == "12.3 [10.1-14.0]"
+
+
+def test_csv_row_equals_the_recorded_episode(run):
+    params = json.loads((run / "config.json").read_text())["envs"][0]["metric_params"]
+    for row in _rows(run):
+        record = load_record(
+            run / "episodes" / ENV / "go-to-goal" / f"corridor_seed{row['seed']}.npz"
+        )
+        values = evaluate(record, "paper", MetricParams(**params))
+        for name in METRIC_NAMES:  # m_cef, m_cre included: the recorded planning time
+            assert _same(float(row[name]), values[name]), name
+
+
+def test_an_episode_replays_alone(run, tmp_path):
+    assert _eval(tmp_path / "one", "--episodes", "1", "--seed", "1") == 0
+    assert _without_timing(_rows(tmp_path / "one")) == _without_timing(_rows(run))[1:]
+    a = load_record(run / "episodes" / ENV / "go-to-goal" / "corridor_seed1.npz")
+    b = load_record(tmp_path / "one" / "episodes" / ENV / "go-to-goal" / "corridor_seed1.npz")
+    assert np.array_equal(a.robot[:, :-1], b.robot[:, :-1]) and np.array_equal(a.people, b.people)
+
+
+def test_workers_give_the_same_episodes(run, run_workers):
+    assert _without_timing(_rows(run_workers)) == _without_timing(_rows(run))
+
+
+def test_defaults_resolve(tmp_path):
+    config = resolve_config(out=str(tmp_path / "d"))
+    assert config.envs == (ENV,) and config.episodes == 5 and config.seed == 0
+    assert [p.name for p in config.planners] == list(PLANNERS)
+
+
+# ---------------------------------------------------------------------------- bad input
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--env", "SRPB-Nowhere-v0"], "--env: unknown environment id 'SRPB-Nowhere-v0'"),
+        (["--planner", "teleport"], "--planner: unknown planner 'teleport'; choose one of"),
+        (["--policy", "missing.zip"], "missing.zip: --policy: no such file"),
+        (["--policy", "garbage.zip"], "garbage.zip: --policy: not a stable-baselines3 PPO model"),
+        (["--out", "a_file.txt"], "--out: a_file.txt is an existing file"),
+        (["--episodes", "0"], "--episodes: must be at least 1, got 0"),
+    ],
+)
+def test_bad_arguments_exit_2(args, expected, tmp_path, monkeypatch, capsys):
+    if "garbage.zip" in args:
+        pytest.importorskip("stable_baselines3")
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a_file.txt").write_text("x")
+    (tmp_path / "garbage.zip").write_bytes(b"not a zip file")
+    assert main(["eval", "--out", "out", *args]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("srpb-gym: error: ") and expected in err
+    if "--env" in args:
+        assert "SRPB-Crowd-v0" in err
+    if "--planner" in args:
+        assert "go-to-goal" in err
+
+
+# ---------------------------------------------------------------------------- interrupt
+class _Interrupting(GoToGoal):
+    """Finishes its first episode, then Ctrl-C arrives during the second."""
+
+    name = "interrupting"
+    episodes = 0
+
+    def reset(self, knowledge):
+        type(self).episodes += 1
+
+    def act(self, observation, knowledge):
+        if type(self).episodes > 1 and knowledge.t > 1.0:
+            raise KeyboardInterrupt
+        return super().act(observation, knowledge)
+
+
+def test_interrupt_keeps_finished_episodes(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(PLANNERS, "interrupting", _Interrupting)
+    out = tmp_path / "int"
+    code = main(["eval", "--env", ENV, "--planner", "interrupting", "--episodes", "3",
+                 "--out", str(out)])  # fmt: skip
+    assert code == 130
+    err = capsys.readouterr().err.strip().splitlines()[-1]
+    assert err == f"srpb-gym: interrupted: 1 of 3 episodes finished; results so far in {out}"
+    assert [r["seed"] for r in _rows(out)] == ["0"]
+    folder = out / "episodes" / ENV / "interrupting"
+    assert sorted(p.name for p in folder.iterdir() if "seed0" not in p.name) == []
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] and summary["episodes_finished"] == 1
+    assert (out / f"table_{ENV}.md").is_file()
+
+
+def test_sigint_stops_a_parallel_run(tmp_path):
+    out = tmp_path / "sig"
+    cmd = [sys.executable, "-m", "srpb_gym", "eval", "--env", ENV, "--planner", "go-to-goal",
+           "--episodes", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and proc.poll() is None:
+        if (out / "episodes.csv").is_file() and len(_rows(out)) >= 1:
+            break
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert "interrupted:" in err.strip().splitlines()[-1]
+    rows = _rows(out)
+    assert 1 <= len(rows) < 400
+    folder = out / "episodes" / ENV / "go-to-goal"
+    recorded = sorted(int(p.name[len("corridor_seed") : -4]) for p in folder.glob("*[0-9].npz"))
+    assert recorded == sorted(int(r["seed"]) for r in rows)
+
+
+# ---------------------------------------------------------------------------- compare
+def test_compare_two_runs(run, run_workers, tmp_path, capsys):
+    assert main(["compare", str(run), str(run_workers), "--out", str(tmp_path / "cmp")]) == 0
+    out = capsys.readouterr().out
+    assert "go-to-goal@run" in out and "go-to-goal@workers" in out
+    assert out.splitlines()[1].split()[:2] == ["metric", "unit"]
+    merged = _rows(tmp_path / "cmp")
+    assert len(merged) == 4 and (tmp_path / "cmp" / f"table_{ENV}.tex").is_file()
+    assert main(["compare", str(tmp_path / "nothing")]) == 2
+
+
+# ---------------------------------------------------------------------------- policy, video
+def test_learned_policy_evaluates(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV)]))
+    model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, device="cpu", seed=0)
+    model.learn(64)
+    model.save(tmp_path / "tiny_ppo.zip")
+    venv.save(str(tmp_path / "tiny_ppo_vecnormalize.pkl"))
+    out = tmp_path / "policy"
+    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "tiny_ppo.zip"),
+                 "--episodes", "1", "--out", str(out)]) == 0  # fmt: skip
+    assert [r["planner"] for r in _rows(out)] == ["tiny_ppo"]
+    planner = json.loads((out / "config.json").read_text())["planners"][0]
+    assert planner["algo"] == "PPO" and planner["vecnormalize"].endswith(
+        "tiny_ppo_vecnormalize.pkl"
+    )
+    assert (out / "episodes" / ENV / "tiny_ppo" / "corridor_seed0.npz").is_file()
+
+
+def test_video_of_the_first_episode(tmp_path):
+    pytest.importorskip("pygame")
+    out = tmp_path / "video"
+    assert _eval(out, "--episodes", "2", "--video") == 0
+    videos = sorted(os.listdir(out / "videos"))
+    assert len(videos) == 1 and videos[0].startswith(f"{ENV}_go-to-goal_seed0.")
+    head = (out / "videos" / videos[0]).read_bytes()[:12]
+    assert head.startswith(b"GIF89a") or head[4:8] == b"ftyp"
