@@ -155,6 +155,7 @@ class Simulation:
         self.velocity = np.zeros((n_robots, 3))  # measured body-frame velocity
         self.obstacle_dist = np.zeros(n_robots)
         self._world_cmd = np.zeros((n_robots, 3))
+        self._robot_radius = np.full(n_robots, self.robot_config.radius)
         self.robots = [self._robot_state(r.goal) for r in layout.robots]
         self._init_group_buffers()
         self._sense_and_record()
@@ -220,14 +221,13 @@ class Simulation:
         rounds, sub = (cfg.substeps, 1) if cfg.crowd_every_substep else (1, cfg.substeps)
         world.collisions[:] = False
         dt = cfg.physics_dt * sub
-        for _ in range(rounds):
+        for k in range(rounds):
             pose = world.robot_pose
             body_to_world(self.command, pose[:, 2], dt, self._world_cmd)
             robot_xy = np.ascontiguousarray(pose[:, :2])
             robot_v = np.ascontiguousarray(self._world_cmd[:, :2])
-            radius = np.full(self.n_robots, self.robot_config.radius)
             v = self.crowd.desired_velocity(
-                self.t, dt, robot_xy, robot_v, radius, self.walls, self.rng
+                self.t + k * dt, dt, robot_xy, robot_v, self._robot_radius, self.walls, self.rng
             )
             world.step(self._world_cmd, v, sub)
             self.crowd.sync(world.people_xy, world.people_velocity)
