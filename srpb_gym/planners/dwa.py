@@ -1,0 +1,483 @@
+"""The Dynamic Window Approach (Fox, Burgard and Thrun 1997) following a global path.
+
+Each step samples target velocities (v, omega) and rolls every one out over the horizon
+with the base's acceleration limits from the last command (the dynamic window: what the
+base can reach), as the environment's velocity limiter will execute it. One compiled kernel
+simulates all samples and measures their clearance from the static map and the lidar
+points, and their gap to the tracked people predicted at constant velocity. Trajectories
+that hit an obstacle within the horizon, or come closer than the safety distance to a
+predicted person within ``people_horizon``, are inadmissible; the others are scored by
+weighted critics (path distance, progress along the path, heading to a lookahead point,
+clearance, people, speed, turning) and the cheapest one's velocity is commanded.
+
+Near the goal the robot slows down and turns in place to the goal heading. When no
+trajectory is admissible it takes the least bad one (often stop or turn); when it makes no
+progress for a while it runs a recovery (back up slowly if clear behind, rotate in place,
+replan).
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from typing import Any
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from srpb_gym.planners.base import Knowledge, Planner, command_to_action
+from srpb_gym.planners.global_planner import GlobalPlanner
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _bilinear(grid, x0, y0, res, x, y):
+    ny, nx = grid.shape
+    fx = (x - x0) / res - 0.5
+    fy = (y - y0) / res - 0.5
+    if not (-0.5 <= fx <= nx - 0.5 and -0.5 <= fy <= ny - 0.5):
+        return 0.0
+    i = min(max(int(fx), 0), nx - 2)  # fx >= -0.5: int() floors after the clamp
+    j = min(max(int(fy), 0), ny - 2)
+    u = min(max(fx - i, 0.0), 1.0)
+    v = min(max(fy - j, 0.0), 1.0)
+    return (
+        (1 - u) * (1 - v) * grid[j, i]
+        + u * (1 - v) * grid[j, i + 1]
+        + ((1 - u) * v * grid[j + 1, i] + u * v * grid[j + 1, i + 1])
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def rollout(
+    x, y, yaw, v0, w0, vt, wt, acc_v, acc_w, dt, grid, gx0, gy0, res, pts, people,
+    r_static, t_near, hold, traj, clear, t_static, gap, t_people, gap_near,
+):  # fmt: skip
+    """Simulate every sample s (target ``vt[s]``, ``wt[s]`` from the command (v0, w0) at
+    most ``acc_v``, ``acc_w`` per second) for ``traj.shape[1]`` steps of ``dt`` [s].
+
+    ``grid``: static wall distances [m] (origin gx0, gy0, cell ``res``); ``pts`` (M, 2):
+    obstacle points; ``people`` (P, 5): x, y, vx, vy and collision distance [m].
+    Writes ``traj[s, k]`` = (x, y, yaw, v) after step k + 1, ``clear[s]`` the smallest
+    obstacle distance [m], ``t_static[s]`` the first time it falls under ``r_static``
+    (inf: never), ``gap[s]`` the smallest predicted person distance minus its collision
+    distance [m], ``t_people[s]`` the first time that gap is negative [s] and
+    ``gap_near[s]`` the smallest gap up to ``t_near`` [s]. The people gap also covers
+    ``hold`` more steps with the robot stopped at the trajectory's end (so a trajectory
+    that ends in a person's way is seen to).
+    """
+    steps = traj.shape[1]
+    dv, dw = acc_v * dt, acc_w * dt
+    d0 = np.empty(pts.shape[0])  # points by distance from the start: the search stops at
+    for m in range(pts.shape[0]):  # the first one that cannot be nearer than the best
+        d0[m] = math.hypot(pts[m, 0] - x, pts[m, 1] - y)
+    order = np.argsort(d0)
+    for s in range(vt.shape[0]):
+        px, py, pth, v, w = x, y, yaw, v0, w0
+        cmin, gmin, gnear = np.inf, np.inf, np.inf
+        ts, tp, travel = np.inf, np.inf, 0.0
+        for k in range(steps):
+            v += min(max(vt[s] - v, -dv), dv)
+            w += min(max(wt[s] - w, -dw), dw)
+            mid = pth + 0.5 * w * dt
+            px += v * math.cos(mid) * dt
+            py += v * math.sin(mid) * dt
+            pth += w * dt
+            travel += abs(v) * dt
+            traj[s, k, 0], traj[s, k, 1], traj[s, k, 2], traj[s, k, 3] = px, py, pth, v
+            t = (k + 1) * dt
+            c = _bilinear(grid, gx0, gy0, res, px, py)
+            for q in range(order.shape[0]):
+                m = order[q]
+                if d0[m] - travel >= c:
+                    break
+                c = min(c, math.hypot(px - pts[m, 0], py - pts[m, 1]))
+            cmin = min(cmin, c)
+            if c < r_static and ts == np.inf:
+                ts = t
+            for j in range(people.shape[0]):
+                d = math.hypot(px - people[j, 0] - people[j, 2] * t,
+                               py - people[j, 1] - people[j, 3] * t) - people[j, 4]  # fmt: skip
+                gmin = min(gmin, d)
+                if t <= t_near:
+                    gnear = min(gnear, d)
+                if d < 0.0 and tp == np.inf:
+                    tp = t
+        for k in range(steps, steps + hold):
+            t = (k + 1) * dt
+            for j in range(people.shape[0]):
+                d = math.hypot(px - people[j, 0] - people[j, 2] * t,
+                               py - people[j, 1] - people[j, 3] * t) - people[j, 4]  # fmt: skip
+                gmin = min(gmin, d)
+        clear[s], t_static[s], gap[s], t_people[s], gap_near[s] = cmin, ts, gmin, tp, gnear
+
+
+def goal_turn(knowledge: Knowledge, gain: float = 2.0) -> tuple[float, float]:
+    """(v, omega) that turns in place to the goal heading, braking in time (no overshoot)."""
+    robot = knowledge.robot
+    err = math.remainder(float(knowledge.goal[2] - knowledge.pose[2]), 2 * math.pi)
+    w = min(robot.w_max, gain * abs(err), 0.9 * math.sqrt(2.0 * robot.acc_ang * abs(err)))
+    return 0.0, math.copysign(max(w, 0.15), err)
+
+
+class Recovery:
+    """Stuck detection and recovery behaviours (like ROS move_base's recoveries).
+
+    The robot is stuck when its static cost-to-go of the goal (metres weighted by the
+    inflation cost) fell by less than ``progress`` in ``window`` [s]. When a tracked person
+    is within ``yield_range`` [m] ahead in a narrow place (static clearance under ``narrow``
+    [m]: a door, a corridor), the robot gives way: it drives back along its own
+    trail to the point ``retreat`` [m] away ("retreat", at most ``retreat_time`` [s]) and
+    waits there ``wait_time`` [s] ("wait"). Otherwise it backs up at ``backup_speed``
+    [m/s] for ``backup_time`` [s] while the way behind is clear ("backup") and rotates in
+    place towards the path for at most ``rotate_time`` [s] ("rotate").
+    """
+
+    def __init__(
+        self, window: float = 6.0, progress: float = 0.3, yield_range: float = 2.5,
+        retreat: float = 1.2, retreat_time: float = 8.0, wait_time: float = 3.0,
+        narrow: float = 1.0,
+        backup_time: float = 1.5, backup_speed: float = -0.1, rotate_time: float = 2.0,
+    ) -> None:  # fmt: skip
+        self.window, self.progress, self.yield_range = window, progress, yield_range
+        self.retreat, self.retreat_time, self.wait_time = retreat, retreat_time, wait_time
+        self.narrow = narrow
+        self.backup_time, self.backup_speed = backup_time, backup_speed
+        self.rotate_time = rotate_time
+        self.reset()
+
+    def reset(self) -> None:
+        self.history: deque[tuple[float, float]] = deque()
+        self.trail: deque[tuple[float, float]] = deque(maxlen=600)
+        self.phase, self.until, self.count = "", -math.inf, 0
+        self.target = np.zeros(2)
+
+    def observe(
+        self, knowledge: Knowledge, cost_to_go: float, ahead: NDArray, clearance: float
+    ) -> bool:
+        """Record this step (``ahead``: unit direction of the path, ``clearance``: the
+        static clearance [m] here); returns whether a recovery starts now."""
+        t, x, y = knowledge.t, float(knowledge.pose[0]), float(knowledge.pose[1])
+        if not self.trail or math.hypot(x - self.trail[-1][0], y - self.trail[-1][1]) > 0.05:
+            self.trail.append((x, y))
+        if self.phase:
+            return False
+        self.history.append((t, cost_to_go))
+        while self.history[0][0] < t - self.window - 1e-9:
+            self.history.popleft()
+        t0, c0 = self.history[0]
+        if t - t0 < self.window - 1e-9 or c0 - cost_to_go >= self.progress:
+            return False
+        self.count += 1
+        self.history.clear()
+        rel = knowledge.tracks.xy - knowledge.pose[:2]
+        dist = np.hypot(rel[:, 0], rel[:, 1])
+        front = (dist < self.yield_range) & (rel @ ahead > 0.3 * dist)
+        trail = np.array(self.trail)
+        far = np.flatnonzero(np.hypot(trail[:, 0] - x, trail[:, 1] - y) >= self.retreat)
+        if front.any() and far.size and clearance < self.narrow:
+            self.phase, self.until = "retreat", t + self.retreat_time
+            self.target = trail[far[-1]]
+        else:
+            self.phase, self.until = "backup", t + self.backup_time
+        return True
+
+    def command(
+        self, knowledge: Knowledge, planner: GlobalPlanner, target: NDArray[np.float64]
+    ) -> tuple[float, float] | None:
+        """(v, omega) of a backup, rotate or wait phase now (None: the phase is over or
+        is "retreat", which the planner drives itself)."""
+        t, (x, y, yaw) = knowledge.t, knowledge.pose
+        if self.phase == "retreat":
+            if t < self.until and math.hypot(self.target[0] - x, self.target[1] - y) > 0.25:
+                return None
+            self.phase, self.until = "wait", t + self.wait_time
+        if self.phase == "wait":
+            if t < self.until:
+                return 0.0, 0.0
+            self.phase, self.until = "rotate", t + self.rotate_time
+        if self.phase == "backup":
+            back = np.arange(1, 5) * 0.1
+            clear = planner.clearance(x - back * math.cos(yaw), y - back * math.sin(yaw))
+            rel = knowledge.tracks.xy - knowledge.pose[:2]
+            behind = (rel @ np.array([math.cos(yaw), math.sin(yaw)])) < 0.2
+            people = (np.hypot(*rel.T) < 1.2) & behind
+            if t < self.until and clear.min() > planner.robot_radius + 0.05 and not people.any():
+                return self.backup_speed, 0.0
+            self.phase, self.until = "rotate", t + self.rotate_time
+        if self.phase == "rotate":
+            err = math.remainder(math.atan2(target[1] - y, target[0] - x) - yaw, 2 * math.pi)
+            if t < self.until and abs(err) > 0.15:
+                robot = knowledge.robot
+                w = min(robot.w_max, 2.0 * abs(err), math.sqrt(2 * robot.acc_ang * abs(err)))
+                return 0.0, math.copysign(w, err)
+            self.phase = ""
+            planner.last_plan = -math.inf  # replan now
+        return None
+
+
+class DWA(Planner):
+    """Dynamic Window Approach along the :class:`GlobalPlanner` path.
+
+    Sampling: ``n_v`` linear targets in [0, v_max] and ``n_w`` angular targets in
+    [-w_max, w_max], simulated for ``horizon`` [s] in steps of ``sim_dt`` [s].
+    Safety: the collision shape is the robot radius plus bumper; trajectories closer than
+    that plus ``safety_margin`` [m] to a wall or a lidar point are inadmissible, and so are
+    those closer than the collision shape plus ``person_radius`` + ``person_margin`` [m]
+    to a person predicted at constant velocity within ``people_horizon`` [s]. The people
+    cost looks ``people_lookahead`` [s] ahead (the robot stopped at the trajectory's end
+    after the horizon); people slower than ``standing_speed`` [m/s] are predicted standing
+    still; people farther than ``people_range`` [m] are ignored. Reversing at v_min is
+    sampled too, but only as a last resort. Extra (social) costs are computed for the
+    ``candidates`` admissible samples of lowest cost only.
+    Critic weights (the cost is their sum; lengths in m, angles in rad):
+    ``w_path`` [1/m] end point's distance to the path; ``w_progress`` [1/m] arc length
+    gained along the path (subtracted); ``w_heading`` [1/rad] end heading's error to the
+    path point ``lookahead`` [m] further on; ``w_goal`` [1/m] end point's distance to the
+    goal when it is within reach; ``w_clear`` obstacle cost exp(-(clearance - safe) /
+    ``clear_scale``) with clearance and ``clear_scale`` in m; ``w_people`` people cost
+    exp(-gap / ``people_scale``) (gap in m, negative inside the safety distance, >= -0.5);
+    ``w_speed`` (1 - v / v_max); ``w_turn`` |omega| / w_max; ``w_smooth`` |omega -
+    previous omega| / w_max.
+    Goal: ``arrive_radius`` [m] distance under which the robot turns in place to the goal
+    heading; ``approach_decel`` [m/s^2] the deceleration its speed cap allows before it.
+    ``planner_kwargs``: arguments of the :class:`GlobalPlanner`.
+    """
+
+    name = "dwa"
+
+    def __init__(
+        self,
+        n_v: int = 11,
+        n_w: int = 21,
+        horizon: float = 2.0,
+        sim_dt: float = 0.1,
+        safety_margin: float = 0.05,
+        person_radius: float = 0.3,
+        person_margin: float = 0.1,
+        people_horizon: float = 1.2,
+        people_lookahead: float = 3.5,
+        standing_speed: float = 0.15,
+        people_range: float = 6.0,
+        candidates: int = 80,
+        w_path: float = 3.0,
+        w_progress: float = 2.0,
+        w_heading: float = 0.6,
+        lookahead: float = 0.8,
+        w_goal: float = 2.0,
+        w_clear: float = 0.5,
+        clear_scale: float = 0.15,
+        w_people: float = 1.0,
+        people_scale: float = 0.45,
+        w_speed: float = 0.2,
+        w_turn: float = 0.05,
+        w_smooth: float = 0.1,
+        arrive_radius: float = 0.1,
+        approach_decel: float = 0.6,
+        planner_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        self.n_v, self.n_w, self.horizon, self.sim_dt = n_v, n_w, horizon, sim_dt
+        self.safety_margin, self.people_horizon = safety_margin, people_horizon
+        self.people_lookahead, self.standing_speed = people_lookahead, standing_speed
+        self.people_range, self.candidates = people_range, candidates
+        self.person_radius, self.person_margin = person_radius, person_margin
+        self.w_path, self.w_progress, self.w_heading = w_path, w_progress, w_heading
+        self.lookahead, self.w_goal = lookahead, w_goal
+        self.w_clear, self.clear_scale = w_clear, clear_scale
+        self.w_people, self.people_scale = w_people, people_scale
+        self.w_speed, self.w_turn, self.w_smooth = w_speed, w_turn, w_smooth
+        self.arrive_radius, self.approach_decel = arrive_radius, approach_decel
+        kwargs = {"person_radius": person_radius, "person_margin": person_margin}
+        self.planner = GlobalPlanner(**(kwargs | self._planner_defaults() | (planner_kwargs or {})))
+        self.recovery = Recovery()
+        self._steps = max(round(horizon / sim_dt), 1)
+        self._hold = max(round((people_lookahead - horizon) / sim_dt), 0)
+
+    def _planner_defaults(self) -> dict[str, Any]:
+        return {}
+
+    # ------------------------------------------------------------------ episode
+    def reset(self, knowledge: Knowledge) -> None:
+        self.planner.reset(knowledge)
+        self.recovery.reset()
+        self._arrived = False
+        self._w_prev = 0.0
+        robot = knowledge.robot
+        v = np.concatenate([[robot.v_min], np.linspace(0.0, robot.v_max, self.n_v)])
+        w = np.linspace(-robot.w_max, robot.w_max, self.n_w)
+        self._vt, self._wt = (a.ravel().copy() for a in np.meshgrid(v, w, indexing="ij"))
+        n = self._vt.shape[0]
+        self._traj = np.empty((n, self._steps, 4))
+        self._out = np.empty((5, n))
+
+    # ------------------------------------------------------------------ decision
+    def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
+        v, w = self.decide(knowledge)
+        self._w_prev = w
+        return command_to_action(v, 0.0, w, knowledge.robot)
+
+    def decide(self, knowledge: Knowledge) -> tuple[float, float]:
+        """The (v [m/s], omega [rad/s]) command of this step."""
+        k = knowledge
+        gp = self.planner
+        dist = math.hypot(k.goal[0] - k.pose[0], k.goal[1] - k.pose[1])
+        if self._arrived or dist <= self.arrive_radius:
+            self._arrived = dist < 0.9 * k.goal_tolerance
+            if self._arrived:
+                return goal_turn(k)
+        self._update_path(k)
+        rec = self.recovery
+        look = gp.lookahead(1.0)
+        ahead = look - k.pose[:2]
+        ahead = ahead / max(float(np.hypot(*ahead)), 1e-9)
+        x, y = float(k.pose[0]), float(k.pose[1])
+        clear = float(gp.clearance(np.array([x]), np.array([y]))[0])
+        rec.observe(k, gp.cost_to_go(x, y), ahead, clear)
+        if rec.phase:
+            cmd = rec.command(k, gp, look)
+            if cmd is not None and not self._threatened(k):
+                return cmd
+            if rec.phase == "retreat":  # drive back along the trail
+                target = rec.target
+                n = max(int(np.hypot(*(target - k.pose[:2])) / gp.spacing), 1) + 1
+                local = np.linspace(k.pose[:2], target, n)
+                s_local = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(local, axis=0).T))])
+                return self._best(k, local, s_local, target)
+        local, s_local = gp.local(3.0 + k.robot.v_max * self.horizon)
+        return self._best(k, local, s_local, k.goal[:2])
+
+    def _threatened(self, k: Knowledge, horizon: float = 1.5) -> bool:
+        """Whether a tracked person walks into the robot standing still within
+        ``horizon`` [s] (then a recovery yields to the people-aware trajectory choice)."""
+        people = self._people(k)
+        if people.shape[0] == 0:
+            return False
+        t = np.arange(1, round(horizon / self.sim_dt) + 1) * self.sim_dt
+        px = people[None, :, 0] + people[None, :, 2] * t[:, None] - k.pose[0]
+        py = people[None, :, 1] + people[None, :, 3] * t[:, None] - k.pose[1]
+        return bool((np.hypot(px, py) < people[None, :, 4]).any())
+
+    def _update_path(self, knowledge: Knowledge) -> None:
+        self.planner.update(knowledge)
+
+    def _best(
+        self, k: Knowledge, local: NDArray[np.float64], s_local: NDArray[np.float64],
+        goal: NDArray[np.float64],
+    ) -> tuple[float, float]:  # fmt: skip
+        """The best sample following ``local`` (path points, arc length ``s_local``) to
+        ``goal`` (x, y)."""
+        gp, robot = self.planner, k.robot
+        x, y, yaw = (float(a) for a in k.pose)
+        dist = math.hypot(goal[0] - x, goal[1] - y)
+        cap = math.sqrt(2.0 * self.approach_decel * max(dist - 0.5 * self.arrive_radius, 0.0))
+        vt = np.minimum(self._vt, max(cap, 0.05))
+        pts = self._scan_points(k)
+        people = self._people(k)
+        r_hard = gp.robot_radius + 0.01
+        d0 = float(gp.clearance(np.array([x]), np.array([y]))[0])
+        if pts.shape[0]:
+            d0 = min(d0, float(np.hypot(pts[:, 0] - x, pts[:, 1] - y).min()))
+        r_static = max(r_hard, min(gp.robot_radius + self.safety_margin, d0 - 0.01))
+        traj, (clear, t_static, gap, t_people, gap_near) = self._traj, self._out
+        rollout(x, y, yaw, float(k.command[0]), float(k.command[2]), vt, self._wt,
+                robot.acc_lin, robot.acc_ang, self.sim_dt, gp.dist, gp.x0, gp.y0, gp.res,
+                pts, people, r_static, self.people_horizon, self._hold, traj, clear, t_static,
+                gap, t_people, gap_near)  # fmt: skip
+        cost = self._critics(k, vt, traj, clear, gap, local, s_local, goal)
+        ok = (t_static == np.inf) & (t_people > self.people_horizon) & (vt >= 0.0)
+        if ok.any():  # extra costs of the most promising admissible samples only
+            rows = np.flatnonzero(ok)
+            rows = rows[np.argsort(cost[rows], kind="stable")[: self.candidates]]
+            extra = np.full(cost.shape[0], np.inf)
+            extra[rows] = self._social_costs(k, traj[rows])
+            cost = cost + extra
+            best = int(np.argmin(np.where(ok, cost, np.inf)))
+        else:  # least bad: no static hit, then the largest gap to people soon (keeping the
+            # turn it had: flipping between turns leaves it in the way)
+            score = np.where(t_static == np.inf, 10.0, t_static) * 100.0 + np.minimum(
+                gap_near, 10.0) - 0.1 * np.abs(self._wt - self._w_prev) / robot.w_max  # fmt: skip
+            best = int(np.argmax(score))
+        return float(vt[best]), float(self._wt[best])
+
+    def _critics(self, k: Knowledge, vt, traj, clear, gap, local, s_local, goal) -> NDArray:
+        """Weighted sum of the critics of every sample (see the class docstring)."""
+        gp, robot = self.planner, k.robot
+        end = traj[:, -1, :]
+        dist = math.hypot(goal[0] - k.pose[0], goal[1] - k.pose[1])
+        d = np.hypot(end[:, None, 0] - local[None, :, 0], end[:, None, 1] - local[None, :, 1])
+        j = np.argmin(d, axis=1)
+        path_d = d[np.arange(j.shape[0]), j]
+        progress = s_local[j]
+        look_idx = np.minimum(np.searchsorted(s_local, progress + self.lookahead), len(local) - 1)
+        look = local[look_idx]
+        to_look = np.arctan2(look[:, 1] - end[:, 1], look[:, 0] - end[:, 0])
+        head = np.abs(np.remainder(to_look - end[:, 2] + np.pi, 2 * np.pi) - np.pi)
+        near = np.hypot(look[:, 0] - end[:, 0], look[:, 1] - end[:, 1]) < 0.3
+        head = np.where(near, 0.0, head)
+        cost = self.w_path * path_d - self.w_progress * progress + self.w_heading * head
+        if dist < robot.v_max * self.horizon + self.lookahead:
+            cost += self.w_goal * np.hypot(end[:, 0] - goal[0], end[:, 1] - goal[1])
+        safe = gp.robot_radius + self.safety_margin
+        cost += self.w_clear * np.exp(-np.maximum(clear - safe, 0.0) / self.clear_scale)
+        cost += self.w_people * np.exp(-np.maximum(gap, -0.5) / self.people_scale)
+        cost += self.w_speed * (1.0 - vt / robot.v_max)
+        cost += self.w_turn * np.abs(self._wt) / robot.w_max
+        cost += self.w_smooth * np.abs(self._wt - self._w_prev) / robot.w_max
+        return cost
+
+    def _social_costs(self, k: Knowledge, traj: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Extra costs of the admissible trajectories ``traj`` (none here; see
+        :class:`SocialDWA`)."""
+        return np.zeros(traj.shape[0])
+
+    # ------------------------------------------------------------------ perception
+    def _scan_points(self, k: Knowledge) -> NDArray[np.float64]:
+        reach = k.robot.v_max * self.horizon + 1.0
+        return scan_points(k, self.planner, reach, self.person_radius)
+
+    def _people(self, k: Knowledge) -> NDArray[np.float64]:
+        people = people_array(k, self.planner.robot_radius, self.person_radius,
+                              self.person_margin, self.standing_speed)  # fmt: skip
+        # people that cannot come within 1.5 m of any trajectory in the lookahead are left out
+        dist = np.hypot(people[:, 0] - k.pose[0], people[:, 1] - k.pose[1])
+        reach = k.robot.v_max * self.horizon + np.hypot(people[:, 2], people[:, 3]) * (
+            self.people_lookahead) + people[:, 4] + 1.5  # fmt: skip
+        return people[(dist < reach) & (dist < self.people_range)]
+
+
+def scan_points(
+    k: Knowledge, planner: GlobalPlanner, reach: float, person_radius: float
+) -> NDArray[np.float64]:
+    """(M, 2) lidar points within ``reach`` [m] that are neither static walls (closer than
+    0.1 m to one) nor people tracked this step (a coasting track may be off: its person's
+    points stay obstacles)."""
+    r = k.scan
+    ang = k.pose[2] + k.scan_angles
+    pts = np.column_stack([k.pose[0] + r * np.cos(ang), k.pose[1] + r * np.sin(ang)])
+    pts = pts[r < min(reach, k.range_max - 1e-6)]
+    if pts.shape[0]:
+        pts = pts[planner.clearance(pts[:, 0], pts[:, 1]) > 0.1]
+    fresh = k.tracks.xy[k.tracks.time_since_update < 0.5 * k.control_dt]
+    if pts.shape[0] and fresh.shape[0]:  # people seen now: predicted as tracks instead
+        d = np.hypot(pts[:, None, 0] - fresh[None, :, 0], pts[:, None, 1] - fresh[None, :, 1])
+        pts = pts[d.min(axis=1) > person_radius + 0.25]
+    return np.ascontiguousarray(pts)
+
+
+def people_array(
+    k: Knowledge, robot_radius: float, person_radius: float, margin: float,
+    standing_speed: float,
+) -> NDArray[np.float64]:  # fmt: skip
+    """(P, 5) x, y, vx, vy and collision distance [m] of the tracked people: robot radius
+    plus ``person_radius`` plus ``margin``, or for a person already closer the distance it
+    has (minus 5 cm, at least the two radii plus 1 cm). People slower than
+    ``standing_speed`` [m/s] get zero velocity (their estimate is mostly noise)."""
+    tr = k.tracks
+    out = np.empty((tr.xy.shape[0], 5))
+    out[:, :2], out[:, 2:4] = tr.xy, tr.velocity
+    out[np.hypot(*tr.velocity.T) < standing_speed, 2:4] = 0.0
+    full = robot_radius + person_radius + margin
+    hard = robot_radius + person_radius + 0.01
+    now = np.hypot(tr.xy[:, 0] - k.pose[0], tr.xy[:, 1] - k.pose[1])
+    out[:, 4] = np.maximum(hard, np.minimum(full, now - 0.05))
+    return out

@@ -1,0 +1,516 @@
+"""Global path planning on an inflated grid of the static map (like ROS navfn on a costmap).
+
+:class:`GlobalPlanner` rasterises the static walls once per episode into a grid of exact
+wall distances (``resolution``, 5 cm by default) and turns it into a traversal cost: cells
+closer than ``wall_keepout`` to a wall are impassable, cells closer than the robot's radius
+plus bumper plus ``margin`` are lethal (very expensive), and beyond that the cost decays
+exponentially to 1 (the inflation gradient that keeps paths clear of walls). A Dijkstra
+sweep from the goal gives the static cost-to-go, which is the exact heuristic of the A*
+searches that replan with tracked people as temporary obstacles. Paths are smoothed and
+resampled every ``spacing`` metres.
+
+Every grid operation is one compiled kernel; nothing loops over cells in Python.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from srpb_gym.planners.base import Knowledge
+from srpb_gym.sim.geometry import point_segment_distance
+
+SQRT2 = math.sqrt(2.0)
+
+
+@njit(cache=True, error_model="numpy")
+def wall_distance(segs, x0, y0, res, reach, out):
+    """``out[iy, ix]``: distance [m] from the centre of cell (iy, ix) to the nearest wall
+    segment, capped at ``reach`` (only cells within ``reach`` of a segment are visited)."""
+    ny, nx = out.shape
+    out[:, :] = reach
+    for s in range(segs.shape[0]):
+        ax, ay, bx, by = segs[s, 0], segs[s, 1], segs[s, 2], segs[s, 3]
+        i0 = max(int((min(ax, bx) - reach - x0) / res), 0)
+        i1 = min(int((max(ax, bx) + reach - x0) / res) + 1, nx)
+        j0 = max(int((min(ay, by) - reach - y0) / res), 0)
+        j1 = min(int((max(ay, by) + reach - y0) / res) + 1, ny)
+        for j in range(j0, j1):
+            cy = y0 + (j + 0.5) * res
+            for i in range(i0, i1):
+                d = point_segment_distance(x0 + (i + 0.5) * res, cy, ax, ay, bx, by)
+                if d < out[j, i]:
+                    out[j, i] = d
+
+
+@njit(cache=True, error_model="numpy")
+def sample_grid(grid, x0, y0, res, xs, ys, outside, out):
+    """Bilinear interpolation of ``grid`` (cell-centred) at the points (xs, ys); points off
+    the grid read ``outside``."""
+    ny, nx = grid.shape
+    for k in range(xs.shape[0]):
+        fx = (xs[k] - x0) / res - 0.5
+        fy = (ys[k] - y0) / res - 0.5
+        if not (-0.5 <= fx <= nx - 0.5 and -0.5 <= fy <= ny - 0.5):
+            out[k] = outside
+            continue
+        i = min(max(int(fx), 0), nx - 2)  # fx >= -0.5: int() floors after the clamp
+        j = min(max(int(fy), 0), ny - 2)
+        u = min(max(fx - i, 0.0), 1.0)
+        v = min(max(fy - j, 0.0), 1.0)
+        out[k] = (
+            (1 - u) * (1 - v) * grid[j, i]
+            + u * (1 - v) * grid[j, i + 1]
+            + (1 - u) * v * grid[j + 1, i]
+            + u * v * grid[j + 1, i + 1]
+        )
+
+
+@njit(cache=True, error_model="numpy")
+def _push(hk, hv, n, key, val):
+    i = n
+    hk[i], hv[i] = key, val
+    while i > 0:
+        p = (i - 1) >> 1
+        if hk[p] <= hk[i]:
+            break
+        hk[p], hk[i] = hk[i], hk[p]
+        hv[p], hv[i] = hv[i], hv[p]
+        i = p
+    return n + 1
+
+
+@njit(cache=True, error_model="numpy")
+def _pop(hk, hv, n):
+    val = hv[0]
+    n -= 1
+    hk[0], hv[0] = hk[n], hv[n]
+    i = 0
+    while True:
+        c = 2 * i + 1
+        if c >= n:
+            break
+        if c + 1 < n and hk[c + 1] < hk[c]:
+            c += 1
+        if hk[i] <= hk[c]:
+            break
+        hk[c], hk[i] = hk[i], hk[c]
+        hv[c], hv[i] = hv[i], hv[c]
+        i = c
+    return val, n
+
+
+@njit(cache=True, error_model="numpy")
+def grid_search(cost, nx, res, start, goal, h, weight, g, parent, done, hk, hv):
+    """A* over the 8-connected grid of flat ``cost`` (per metre; inf: impassable) from cell
+    ``start``; ``goal`` < 0 runs a full Dijkstra sweep. An edge costs its length times the
+    mean cost of its two cells; diagonal moves may not cut impassable corners. ``h`` is a
+    consistent heuristic (zeros for Dijkstra) weighted by ``weight`` (> 1: fewer nodes
+    expanded, paths at most that factor costlier; 1.001 breaks ties towards deeper nodes).
+    Fills ``g`` (cost from start) and ``parent``; returns whether ``goal`` was reached."""
+    ncell = cost.shape[0]
+    g[:] = np.inf
+    parent[:] = -1
+    done[:] = False
+    g[start] = 0.0
+    n = _push(hk, hv, 0, h[start], start)
+    while n > 0:
+        c, n = _pop(hk, hv, n)
+        if done[c]:
+            continue
+        done[c] = True
+        if c == goal:
+            return True
+        cx, cy = c % nx, c // nx
+        for k in range(8):
+            dx = (-1, 0, 1, -1, 1, -1, 0, 1)[k]
+            dy = (-1, -1, -1, 0, 0, 1, 1, 1)[k]
+            x, y = cx + dx, cy + dy
+            m = y * nx + x
+            if x < 0 or x >= nx or m < 0 or m >= ncell or done[m] or not cost[m] < np.inf:
+                continue
+            step = res
+            if dx != 0 and dy != 0:
+                if not (cost[cy * nx + x] < np.inf and cost[y * nx + cx] < np.inf):
+                    continue
+                step = res * SQRT2
+            ng = g[c] + step * 0.5 * (cost[c] + cost[m])
+            if ng < g[m]:
+                g[m] = ng
+                parent[m] = c
+                if n >= hk.shape[0]:
+                    return False
+                n = _push(hk, hv, n, ng + weight * h[m], m)
+    return goal < 0
+
+
+@njit(cache=True, error_model="numpy")
+def people_layer(cost, x0, y0, res, ax, ay, bx, by, core, core_cost, soft, scale, reach):
+    """Add to ``cost`` (ny, nx) the temporary-obstacle cost of people swept along segments
+    (ax, ay)-(bx, by): ``core_cost[p]`` within ``core`` [m], then ``soft`` exp(-(d - core)
+    / ``scale``) up to ``core + reach``. Impassable cells stay impassable."""
+    ny, nx = cost.shape
+    r = core + reach
+    for p in range(ax.shape[0]):
+        i0 = max(int((min(ax[p], bx[p]) - r - x0) / res), 0)
+        i1 = min(int((max(ax[p], bx[p]) + r - x0) / res) + 1, nx)
+        j0 = max(int((min(ay[p], by[p]) - r - y0) / res), 0)
+        j1 = min(int((max(ay[p], by[p]) + r - y0) / res) + 1, ny)
+        for j in range(j0, j1):
+            cy = y0 + (j + 0.5) * res
+            for i in range(i0, i1):
+                d = point_segment_distance(x0 + (i + 0.5) * res, cy, ax[p], ay[p], bx[p], by[p])
+                if d < core:
+                    cost[j, i] += core_cost[p]
+                elif d < r:
+                    cost[j, i] += soft * math.exp(-(d - core) / scale)
+
+
+@njit(cache=True, error_model="numpy")
+def trace_path(parent, goal, out):
+    """Cells from the search's start to ``goal`` (following ``parent``) into ``out``;
+    returns their number (0 when ``out`` is too short)."""
+    n, c = 0, goal
+    while c >= 0:
+        if n >= out.shape[0]:
+            return 0
+        out[n] = c
+        n += 1
+        c = parent[c]
+    out[:n] = out[:n][::-1].copy()
+    return n
+
+
+def _lookup(keys: NDArray, values: NDArray, query: NDArray, default: float) -> NDArray:
+    """``values`` of ``keys`` (unique) equal to each ``query`` entry, else ``default``."""
+    out = np.full(query.shape[0], default, dtype=np.float64)
+    if keys.shape[0] == 0 or query.shape[0] == 0:
+        return out
+    order = np.argsort(keys)
+    pos = np.minimum(np.searchsorted(keys[order], query), keys.shape[0] - 1)
+    found = keys[order][pos] == query
+    out[found] = values[order][pos[found]]
+    return out
+
+
+class GlobalPlanner:
+    """Grid planner of the static map with people as temporary obstacles.
+
+    Args:
+        resolution: grid cell size [m].
+        margin: clearance beyond the robot's radius and bumper under which cells are
+            lethal [m].
+        wall_keepout: cells closer than this to a wall are impassable [m].
+        lethal_cost: cost per metre of a lethal cell (passable only as a last resort).
+        inflation_weight: extra cost per metre at the lethal boundary, decaying
+            exponentially with ``inflation_scale`` [m] (the clearance gradient).
+        person_radius: assumed body radius of a tracked person [m].
+        person_margin: extra clearance around a person under which cells cost
+            ``lethal_cost`` (standing people) or ``walking_cost`` per metre (walking people:
+            the local planner handles them) [m]; ``person_weight`` and ``person_scale``
+            [m]: soft cost around that core.
+        person_horizon: walking people block their way this far ahead [s]. Only people
+            walking straight at the robot (within acos(``oncoming_cos``) of the line to
+            it) count; the local planner handles the others.
+        pass_bias: a walking person's cost is shifted this much to the person's right [m],
+            so paths pass people on their left (the robot keeps right).
+        memory: standing people stay obstacles this long after their track is lost [s].
+        settle_time: a track counts as a standing person once it has been slower than
+            0.3 m/s for this long [s] (walkers slow down and new tracks start at rest).
+        people_range: only people within this distance of the robot are obstacles [m].
+        replan_period: replan at least this often [s]; ``max_deviation``: replan when the
+            robot is farther than this from the path [m]; ``block_check``: replan when a
+            person blocks the path within this distance ahead [m] (at most every
+            ``min_replan_interval`` seconds).
+        heuristic_weight: weight of the A* heuristic (the static cost-to-go); above 1 the
+            search expands fewer cells and returns paths at most that factor costlier.
+        hysteresis, hysteresis_length: a replanned path replaces the current one only when
+            cheaper than its cost / (1 + ``hysteresis``) minus ``hysteresis_length`` [m].
+        spacing: distance between the returned path points [m].
+    """
+
+    def __init__(
+        self,
+        resolution: float = 0.05,
+        margin: float = 0.04,
+        wall_keepout: float = 0.12,
+        lethal_cost: float = 200.0,
+        inflation_weight: float = 4.0,
+        inflation_scale: float = 0.25,
+        person_radius: float = 0.3,
+        person_margin: float = 0.05,
+        walking_cost: float = 15.0,
+        person_weight: float = 3.0,
+        person_scale: float = 0.3,
+        person_horizon: float = 2.0,
+        oncoming_cos: float = 0.87,
+        pass_bias: float = 0.4,
+        memory: float = 5.0,
+        settle_time: float = 1.0,
+        people_range: float = 6.0,
+        replan_period: float = 2.0,
+        max_deviation: float = 0.6,
+        block_check: float = 3.0,
+        min_replan_interval: float = 0.5,
+        heuristic_weight: float = 1.001,
+        hysteresis: float = 0.15,
+        hysteresis_length: float = 0.5,
+        spacing: float = 0.1,
+    ) -> None:
+        self.res, self.margin, self.keepout = resolution, margin, wall_keepout
+        self.lethal_cost = lethal_cost
+        self.inflation_weight, self.inflation_scale = inflation_weight, inflation_scale
+        self.person_radius, self.person_margin = person_radius, person_margin
+        self.person_weight, self.person_scale, self.walking_cost = (person_weight, person_scale,
+                                                                    walking_cost)  # fmt: skip
+        self.person_horizon, self.pass_bias, self.memory = person_horizon, pass_bias, memory
+        self.people_range, self.oncoming_cos, self.settle_time = (people_range, oncoming_cos,
+                                                                  settle_time)  # fmt: skip
+        # extra cost layers: called as layer(knowledge, cost grid) before each search
+        self.layers: list[Callable[[Knowledge, NDArray[np.float64]], None]] = []
+        self.replan_period, self.max_deviation = replan_period, max_deviation
+        self.block_check, self.min_replan_interval = block_check, min_replan_interval
+        self.hysteresis, self.hysteresis_length = hysteresis, hysteresis_length
+        self.heuristic_weight, self.spacing = heuristic_weight, spacing
+        self.path, self.arc = np.zeros((0, 2)), np.zeros(0)
+
+    # ------------------------------------------------------------------ episode setup
+    def reset(self, knowledge: Knowledge) -> None:
+        """Rasterise the static map, build the cost grid and the cost-to-go of the goal."""
+        xmin, ymin, xmax, ymax = knowledge.bounds
+        res = self.res
+        self.x0, self.y0 = float(xmin), float(ymin)
+        self.nx = max(math.ceil((xmax - xmin) / res), 2)
+        self.ny = max(math.ceil((ymax - ymin) / res), 2)
+        walls = np.ascontiguousarray(knowledge.walls, dtype=np.float64).reshape(-1, 4)
+        self.dist = np.empty((self.ny, self.nx))
+        wall_distance(walls, self.x0, self.y0, res, 5.0, self.dist)
+        robot = knowledge.robot
+        self.robot_radius = robot.radius + robot.bumper
+        lethal = self.robot_radius + self.margin
+        d = self.dist
+        cost = 1.0 + self.inflation_weight * np.exp(-(np.maximum(d, lethal) - lethal)
+                                                    / self.inflation_scale)  # fmt: skip
+        cost[d < lethal] = self.lethal_cost
+        cost[d < self.keepout] = np.inf
+        self.goal = np.array(knowledge.goal[:2], dtype=np.float64)
+        goal_cell = self.cell(*self.goal)
+        cost.ravel()[goal_cell] = min(cost.ravel()[goal_cell], self.lethal_cost)  # reachable
+        self.static_cost = cost
+        n = self.nx * self.ny
+        self._g, self._h = np.empty(n), np.zeros(n)
+        self._parent, self._done = np.empty(n, np.int64), np.empty(n, np.bool_)
+        self._hk, self._hv = np.empty(8 * n + 8), np.empty(8 * n + 8, np.int64)
+        self._cells = np.empty(n, np.int64)
+        grid_search(cost.ravel(), self.nx, res, goal_cell, -1, self._h, 1.0, self._g, self._parent,
+                    self._done, self._hk, self._hv)  # fmt: skip
+        self._h = np.where(np.isfinite(self._g), self._g, 0.0)
+        self._goal_cell = goal_cell
+        self.path, self.arc = np.zeros((0, 2)), np.zeros(0)
+        self.index = 0
+        self.last_plan = -math.inf
+        self.replans = 0
+        self._mem = np.zeros((0, 4))  # standing people: id, x, y, time last seen
+        self._slow_ids, self._slow_t = np.zeros(0, np.int64), np.zeros(0)
+        self._still = np.zeros(0, dtype=np.bool_)
+
+    def cell(self, x: float, y: float) -> int:
+        """Flat index of the cell that holds (x, y) (clamped to the grid)."""
+        i = min(max(int((x - self.x0) / self.res), 0), self.nx - 1)
+        j = min(max(int((y - self.y0) / self.res), 0), self.ny - 1)
+        return j * self.nx + i
+
+    def clearance(self, xs: NDArray[np.float64], ys: NDArray[np.float64]) -> NDArray:
+        """Distance [m] from each point to the nearest static wall (0 off the map)."""
+        xs, ys = np.ascontiguousarray(xs, np.float64), np.ascontiguousarray(ys, np.float64)
+        out = np.empty(xs.shape[0])
+        sample_grid(self.dist, self.x0, self.y0, self.res, xs, ys, 0.0, out)
+        return out
+
+    # ------------------------------------------------------------------ planning
+    def update(self, knowledge: Knowledge) -> bool:
+        """Replan when needed (no path, periodically, off the path, blocked by people).
+        Returns whether it searched."""
+        x, y = float(knowledge.pose[0]), float(knowledge.pose[1])
+        t = knowledge.t
+        self._remember(knowledge)
+        if self.path.shape[0] == 0:
+            self.plan(knowledge, keep=False)
+            return True
+        self.index = self.nearest(x, y)
+        off = math.hypot(self.path[self.index, 0] - x, self.path[self.index, 1] - y)
+        if off > self.max_deviation and t - self.last_plan >= self.min_replan_interval:
+            self.plan(knowledge, keep=True)  # the old path (joined from here) may still win
+            return True
+        due = t - self.last_plan >= self.replan_period
+        if not due and t - self.last_plan >= self.min_replan_interval:
+            due = self._blocked(knowledge)
+        if due:
+            self.plan(knowledge, keep=True)
+        return due
+
+    def plan(self, knowledge: Knowledge, keep: bool = False) -> NDArray[np.float64]:
+        """Search a path from the robot to the goal now; returns it (N, 2). With ``keep``
+        the rest of the current path stays unless the new one is cheaper by more than the
+        ``hysteresis`` (so the path does not flip between sides of moving people)."""
+        x, y = float(knowledge.pose[0]), float(knowledge.pose[1])
+        cost = self.static_cost.copy()
+        ax, ay, bx, by, core_cost = self._obstacle_segments(knowledge)
+        if ax.shape[0]:
+            core = self.robot_radius + self.person_radius + self.person_margin
+            people_layer(cost, self.x0, self.y0, self.res, ax, ay, bx, by, core, core_cost,
+                         self.person_weight, self.person_scale,
+                         4.0 * self.person_scale)  # fmt: skip
+        for layer in self.layers:
+            layer(knowledge, cost)
+        start = self.cell(x, y)
+        flat = cost.ravel()
+        flat[start] = min(flat[start], self.lethal_cost)  # leave a lethal start cell
+        found = grid_search(flat, self.nx, self.res, start, self._goal_cell, self._h,
+                            self.heuristic_weight, self._g, self._parent, self._done, self._hk,
+                            self._hv)  # fmt: skip
+        n = trace_path(self._parent, self._goal_cell, self._cells) if found else 0
+        if n == 0:  # unreachable: head straight for the goal
+            pts = np.array([[x, y], self.goal])
+        else:
+            cells = self._cells[:n]
+            pts = np.column_stack([self.x0 + (cells % self.nx + 0.5) * self.res,
+                                   self.y0 + (cells // self.nx + 0.5) * self.res])  # fmt: skip
+            pts[0], pts[-1] = (x, y), self.goal
+        path, arc = self._smooth(pts)
+        self.last_plan = knowledge.t
+        if keep and self.path.shape[0]:
+            old = np.vstack([[x, y], self.path[self.index :]])
+            old_cost, new_cost = self._path_cost(cost, old), self._path_cost(cost, path)
+            if old_cost <= new_cost * (1.0 + self.hysteresis) + self.hysteresis_length:
+                return self.path
+        self.path, self.arc = path, arc
+        self.index = 0
+        self.replans += 1
+        return self.path
+
+    def _path_cost(self, cost: NDArray[np.float64], pts: NDArray[np.float64]) -> float:
+        """Cost of the polyline ``pts`` on the grid ``cost``: each segment's length times
+        the cost of the cell of its end point."""
+        i = np.clip(((pts[1:, 0] - self.x0) / self.res).astype(np.int64), 0, self.nx - 1)
+        j = np.clip(((pts[1:, 1] - self.y0) / self.res).astype(np.int64), 0, self.ny - 1)
+        seg = np.hypot(*np.diff(pts, axis=0).T)
+        return float(np.minimum(cost[j, i], 1e6) @ seg)
+
+    def _remember(self, knowledge: Knowledge) -> None:
+        """Track since when each track has been slow and keep the tracks slow for
+        ``settle_time`` as standing people (rows id, x, y, last seen) for ``memory`` s."""
+        tr, t = knowledge.tracks, knowledge.t
+        slow = np.hypot(*tr.velocity.T) < 0.3
+        since = np.where(slow, _lookup(self._slow_ids, self._slow_t, tr.ids, t), t)
+        self._slow_ids, self._slow_t = tr.ids[slow], since[slow]
+        self._still = slow & (t - since >= self.settle_time)
+        mem = self._mem[~np.isin(self._mem[:, 0], tr.ids[self._still])]
+        new = np.column_stack([tr.ids[self._still], tr.xy[self._still],
+                               np.full(int(self._still.sum()), t)])  # fmt: skip
+        mem = np.vstack([mem, new])
+        self._mem = mem[np.isin(mem[:, 0], tr.ids) | (t - mem[:, 3] <= self.memory)]
+
+    def _obstacle_people(self, knowledge: Knowledge) -> tuple[NDArray, NDArray, NDArray]:
+        """Tracked people that are obstacles of the global plan: within ``people_range``,
+        standing, or walking straight at the robot. Returns their (K, 2) positions and
+        velocities (zero when standing) and whether each is standing."""
+        tr = knowledge.tracks
+        rel = knowledge.pose[:2] - tr.xy
+        dist, speed = np.hypot(*rel.T), np.hypot(*tr.velocity.T)
+        standing = self._still if self._still.shape == speed.shape else speed < 0.0
+        towards = (tr.velocity * rel).sum(axis=1) > self.oncoming_cos * speed * dist
+        use = (dist < self.people_range) & (standing | (towards & (self.walking_cost > 0)))
+        vel = np.where(standing[:, None], 0.0, tr.velocity)
+        return tr.xy[use], vel[use], standing[use]
+
+    def _obstacle_segments(self, knowledge: Knowledge):
+        """People as segments from their current position (walkers: shifted by
+        ``pass_bias`` to their right) to where they will be ``person_horizon`` s ahead,
+        plus remembered standing people whose tracks were lost; and their core costs."""
+        xy, vel, standing = self._obstacle_people(knowledge)
+        speed = np.maximum(np.hypot(vel[:, 0], vel[:, 1]), 1e-9)
+        right = np.column_stack([vel[:, 1], -vel[:, 0]]) / speed[:, None]
+        a = xy + np.where(standing[:, None], 0.0, self.pass_bias * right)
+        b = a + vel * self.person_horizon
+        core_cost = np.where(standing, self.lethal_cost, self.walking_cost)
+        lost = self._mem[~np.isin(self._mem[:, 0], knowledge.tracks.ids), 1:3]
+        if lost.shape[0]:
+            a, b = np.vstack([a, lost]), np.vstack([b, lost])
+            core_cost = np.concatenate([core_cost, np.full(lost.shape[0], self.lethal_cost)])
+        return (
+            np.ascontiguousarray(a[:, 0]),
+            np.ascontiguousarray(a[:, 1]),
+            np.ascontiguousarray(b[:, 0]),
+            np.ascontiguousarray(b[:, 1]),
+            core_cost,
+        )
+
+    def _blocked(self, knowledge: Knowledge) -> bool:
+        """Whether an obstacle person (now or ``person_horizon`` ahead) is within the core
+        radius of the path in the next ``block_check`` metres."""
+        xy, vel, _ = self._obstacle_people(knowledge)
+        if xy.shape[0] == 0:
+            return False
+        ahead = self.arc[self.index] + self.block_check
+        seg = self.path[self.index : int(np.searchsorted(self.arc, ahead)) + 1]
+        core = self.robot_radius + self.person_radius + self.person_margin
+        people = np.vstack([xy, xy + vel * self.person_horizon])
+        d = np.hypot(seg[:, None, 0] - people[None, :, 0], seg[:, None, 1] - people[None, :, 1])
+        return bool((d < core).any())
+
+    def _smooth(self, pts: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+        """Moving-average smoothing that never moves a point closer to a wall than the
+        lethal clearance, resampled every ``spacing`` metres; returns (path, arc length)."""
+        if pts.shape[0] > 4:
+            lethal = self.robot_radius + self.margin
+            raw_clear = self.clearance(pts[:, 0], pts[:, 1])
+            sm = pts.copy()
+            k = 7
+            kernel = np.ones(k) / k
+            for _ in range(3):
+                pad = np.pad(sm, ((k // 2, k // 2), (0, 0)), mode="edge")
+                new = np.column_stack([np.convolve(pad[:, i], kernel, "valid") for i in (0, 1)])
+                new[0], new[-1] = pts[0], pts[-1]
+                clear = self.clearance(new[:, 0], new[:, 1])
+                bad = (clear < lethal) & (clear < raw_clear)
+                new[bad] = pts[bad]
+                sm = new
+            pts = sm
+        seg = np.hypot(*np.diff(pts, axis=0).T)
+        arc = np.concatenate([[0.0], np.cumsum(seg)])
+        if arc[-1] < 1e-9:
+            return pts[-1:].copy(), np.zeros(1)
+        n = max(math.ceil(arc[-1] / self.spacing), 1) + 1
+        s = np.linspace(0.0, arc[-1], n)
+        path = np.column_stack([np.interp(s, arc, pts[:, 0]), np.interp(s, arc, pts[:, 1])])
+        return path, s
+
+    def cost_to_go(self, x: float, y: float) -> float:
+        """Static cost of the way from (x, y) to the goal (metres weighted by the cost)."""
+        return float(self._h[self.cell(x, y)])
+
+    # ------------------------------------------------------------------ path following
+    def nearest(self, x: float, y: float, window: float = 2.0) -> int:
+        """Index of the path point nearest to (x, y) among those from the last index to
+        ``window`` metres ahead of it (the robot does not jump along the path)."""
+        lo = self.index
+        hi = int(np.searchsorted(self.arc, self.arc[lo] + window)) + 1
+        seg = self.path[lo:hi]
+        return lo + int(np.argmin(np.hypot(seg[:, 0] - x, seg[:, 1] - y)))
+
+    def lookahead(self, distance: float) -> NDArray[np.float64]:
+        """The path point ``distance`` metres ahead of the current index (the goal at most)."""
+        s = self.arc[self.index] + distance
+        return self.path[min(int(np.searchsorted(self.arc, s)), self.path.shape[0] - 1)]
+
+    def local(self, length: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """The path from the current index to ``length`` metres ahead and its arc length
+        measured from the current index."""
+        lo = self.index
+        hi = int(np.searchsorted(self.arc, self.arc[lo] + length)) + 1
+        return self.path[lo:hi], self.arc[lo:hi] - self.arc[lo]

@@ -1,0 +1,199 @@
+"""A social-force controller (Helbing and Molnar 1995) driving the robot along a global path.
+
+The robot is a particle in the social force model: attraction to a lookahead point on the
+:class:`~srpb_gym.planners.global_planner.GlobalPlanner` path at the preferred speed,
+repulsion from each tracked person (exponential in the distance at the closest approach
+within ``anticipation`` seconds at constant velocities, weighted by the anisotropy of the
+robot's field of view, Zanlungo et al. 2011) and from obstacles: the static map (its
+distance field's gradient) and the lidar points that are neither walls nor tracked people.
+The resulting desired velocity becomes a differential-drive command: turn towards it,
+drive at its speed times the cosine of the heading error. Every command is checked by the
+DWA's rollout kernel: the fastest of a few speeds (same turn rate) that collides with
+nothing within the check horizon is sent, else the robot turns in place. At the goal it
+turns in place to the goal heading; when stuck it runs the DWA's recoveries.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from srpb_gym.planners.base import Knowledge, Planner, command_to_action
+from srpb_gym.planners.dwa import Recovery, goal_turn, people_array, rollout, scan_points
+from srpb_gym.planners.global_planner import GlobalPlanner
+
+
+class SocialForcePlanner(Planner):
+    """Social-force navigation along the global path.
+
+    Attraction: towards the path point ``lookahead`` [m] ahead at ``v_pref`` [m/s]
+    (v_max when None), slowing down within the braking distance of ``approach_decel``
+    [m/s^2] of the goal. Repulsion, added to the desired velocity times ``tau`` [s]:
+    people ``a_person`` [m/s^2] exp(-d / ``b_person``), d [m] the gap between the robot and
+    a person of radius ``person_radius`` [m] at their closest approach within
+    ``anticipation`` [s], weighted by ``anisotropy`` + (1 - ``anisotropy``) (1 + cos phi) / 2
+    (phi: bearing of the person from the robot's heading); obstacles ``a_obstacle``
+    [m/s^2] exp(-d / ``b_obstacle``) from the nearest wall and the nearest unknown lidar
+    point, d [m] the robot's clearance. Turning: omega = ``k_turn`` [1/s] x heading error.
+    Safety check: ``check_horizon`` [s] against walls and lidar points (clearance over the
+    collision shape: ``safety_margin`` [m]) and ``people_horizon`` [s] against people
+    (``person_margin`` [m] more than the two radii). ``planner_kwargs``: arguments of the
+    :class:`GlobalPlanner`.
+    """
+
+    name = "social-force"
+
+    def __init__(
+        self,
+        v_pref: float | None = None,
+        lookahead: float = 1.0,
+        tau: float = 0.5,
+        a_person: float = 2.0,
+        b_person: float = 0.35,
+        person_radius: float = 0.3,
+        anticipation: float = 1.5,
+        anisotropy: float = 0.3,
+        a_obstacle: float = 2.0,
+        b_obstacle: float = 0.15,
+        k_turn: float = 2.0,
+        approach_decel: float = 0.6,
+        arrive_radius: float = 0.1,
+        check_horizon: float = 1.5,
+        people_horizon: float = 1.0,
+        safety_margin: float = 0.05,
+        person_margin: float = 0.1,
+        standing_speed: float = 0.25,
+        planner_kwargs: dict[str, Any] | None = None,
+    ) -> None:
+        self.v_pref, self.lookahead, self.tau = v_pref, lookahead, tau
+        self.a_person, self.b_person, self.person_radius = a_person, b_person, person_radius
+        self.anticipation, self.anisotropy = anticipation, anisotropy
+        self.a_obstacle, self.b_obstacle, self.k_turn = a_obstacle, b_obstacle, k_turn
+        self.approach_decel, self.arrive_radius = approach_decel, arrive_radius
+        self.check_horizon, self.people_horizon = check_horizon, people_horizon
+        self.safety_margin, self.person_margin = safety_margin, person_margin
+        self.standing_speed = standing_speed
+        kwargs = {"person_radius": person_radius} | (planner_kwargs or {})
+        self.planner = GlobalPlanner(**kwargs)
+        self.recovery = Recovery()
+        self._steps = max(round(check_horizon / 0.1), 1)
+        self._traj = np.empty((4, self._steps, 4))
+        self._out = np.empty((5, 4))
+
+    def reset(self, knowledge: Knowledge) -> None:
+        self.planner.reset(knowledge)
+        self.recovery.reset()
+        self._arrived = False
+
+    def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
+        v, w = self.decide(knowledge)
+        return command_to_action(v, 0.0, w, knowledge.robot)
+
+    def decide(self, knowledge: Knowledge) -> tuple[float, float]:
+        """The (v [m/s], omega [rad/s]) command of this step."""
+        k, gp = knowledge, self.planner
+        x, y = float(k.pose[0]), float(k.pose[1])
+        dist = math.hypot(k.goal[0] - x, k.goal[1] - y)
+        if self._arrived or dist <= self.arrive_radius:
+            self._arrived = dist < 0.9 * k.goal_tolerance
+            if self._arrived:
+                return goal_turn(k)
+        gp.update(k)
+        rec = self.recovery
+        target = gp.lookahead(self.lookahead)
+        ahead = target - k.pose[:2]
+        clear = float(gp.clearance(np.array([x]), np.array([y]))[0])
+        rec.observe(k, gp.cost_to_go(x, y), ahead / max(float(np.hypot(*ahead)), 1e-9), clear)
+        if rec.phase:
+            cmd = rec.command(k, gp, target)
+            if cmd is not None:
+                return cmd
+            if rec.phase == "retreat":
+                target, dist = rec.target, math.hypot(rec.target[0] - x, rec.target[1] - y)
+        v_des = self.desired_velocity(k, target, dist)
+        return self._command(k, v_des)
+
+    def desired_velocity(
+        self, k: Knowledge, target: NDArray[np.float64], dist: float
+    ) -> NDArray[np.float64]:
+        """World-frame desired velocity [m/s]: attraction plus tau times the repulsions."""
+        robot, gp = k.robot, self.planner
+        pos, yaw = k.pose[:2], float(k.pose[2])
+        heading = np.array([math.cos(yaw), math.sin(yaw)])
+        speed = min(self.v_pref or robot.v_max, robot.v_max)
+        speed = min(speed, math.sqrt(2.0 * self.approach_decel * max(dist - 0.05, 0.0)))
+        to_target = target - pos
+        v_goal = speed * to_target / max(float(np.hypot(*to_target)), 1e-9)
+        force = np.zeros(2)
+        tr = k.tracks
+        if tr.xy.shape[0]:
+            v_robot = float(k.command[0]) * heading
+            vel = np.where(np.hypot(*tr.velocity.T)[:, None] < self.standing_speed, 0.0,
+                           tr.velocity)  # fmt: skip
+            rel = pos - tr.xy  # person -> robot
+            dv = v_robot - vel
+            t_min = np.clip(-(rel * dv).sum(axis=1) / np.maximum((dv * dv).sum(axis=1), 1e-9),
+                            0.0, self.anticipation)  # fmt: skip
+            rel_c = rel + dv * t_min[:, None]
+            dist_c = np.maximum(np.hypot(*rel_c.T), 1e-6)
+            gap = dist_c - gp.robot_radius - self.person_radius
+            cos_phi = -(rel @ heading) / np.maximum(np.hypot(*rel.T), 1e-6)
+            weight = self.anisotropy + (1.0 - self.anisotropy) * 0.5 * (1.0 + cos_phi)
+            mag = self.a_person * np.exp(-gap / self.b_person) * weight
+            force += (mag[:, None] * rel_c / dist_c[:, None]).sum(axis=0)
+        force += self._obstacle_force(k)
+        return v_goal + self.tau * force
+
+    def _obstacle_force(self, k: Knowledge) -> NDArray[np.float64]:
+        """Repulsion from the nearest wall (distance-field gradient) and the nearest lidar
+        point that is neither a wall nor a tracked person [m/s^2]."""
+        gp = self.planner
+        x, y = float(k.pose[0]), float(k.pose[1])
+        h = 0.5 * gp.res
+        d = gp.clearance(np.array([x, x + h, x - h, x, x]), np.array([y, y, y, y + h, y - h]))
+        grad = np.array([d[1] - d[2], d[3] - d[4]])
+        force = np.zeros(2)
+        norm = float(np.hypot(*grad))
+        if norm > 1e-9:
+            mag = self.a_obstacle * math.exp(-(d[0] - gp.robot_radius) / self.b_obstacle)
+            force += mag * grad / norm
+        pts = scan_points(k, gp, 1.5, self.person_radius)
+        if pts.shape[0]:
+            rel = k.pose[:2] - pts
+            dist = np.hypot(*rel.T)
+            i = int(np.argmin(dist))
+            mag = self.a_obstacle * math.exp(-(dist[i] - gp.robot_radius) / self.b_obstacle)
+            force += mag * rel[i] / max(dist[i], 1e-6)
+        return force
+
+    def _command(self, k: Knowledge, v_des: NDArray[np.float64]) -> tuple[float, float]:
+        """Differential-drive command towards ``v_des``: the fastest safe of a few speeds."""
+        robot, gp = k.robot, self.planner
+        yaw = float(k.pose[2])
+        err = math.remainder(math.atan2(v_des[1], v_des[0]) - yaw, 2 * math.pi)
+        w = float(np.clip(self.k_turn * err, -robot.w_max, robot.w_max))
+        v = float(min(np.hypot(*v_des), robot.v_max)) * max(math.cos(err), 0.0)
+        if abs(err) > 0.5 * math.pi:
+            v = 0.0
+        vt = np.array([v, 0.66 * v, 0.33 * v, 0.0])
+        wt = np.full(4, w)
+        pts = scan_points(k, gp, robot.v_max * self.check_horizon + 1.0, self.person_radius)
+        people = people_array(k, gp.robot_radius, self.person_radius, self.person_margin,
+                              self.standing_speed)  # fmt: skip
+        x, y = float(k.pose[0]), float(k.pose[1])
+        d0 = float(gp.clearance(np.array([x]), np.array([y]))[0])
+        if pts.shape[0]:
+            d0 = min(d0, float(np.hypot(pts[:, 0] - x, pts[:, 1] - y).min()))
+        r_static = max(gp.robot_radius + 0.01, min(gp.robot_radius + self.safety_margin, d0 - 0.01))
+        clear, t_static, gap, t_people, gap_near = self._out
+        rollout(x, y, yaw, float(k.command[0]), float(k.command[2]), vt, wt, robot.acc_lin,
+                robot.acc_ang, 0.1, gp.dist, gp.x0, gp.y0, gp.res, pts, people, r_static,
+                self.people_horizon, 0, self._traj, clear, t_static, gap, t_people,
+                gap_near)  # fmt: skip
+        ok = np.flatnonzero((t_static == np.inf) & (t_people > self.people_horizon))
+        if ok.size:
+            return float(vt[ok[0]]), w
+        return 0.0, w
