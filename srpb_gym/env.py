@@ -210,10 +210,11 @@ class SRPBNavEnv(gym.Env):
         self.sim.reset(layout, self.np_random)
         self._collided = False
         record = self.sim.robots[0].record
-        self.reward_fn.reset(record, self._goal_distance())
+        distance = self.sim.goal_distance()
+        self.reward_fn.reset(record, distance)
         self._episode += 1
         info = dict(self._info_template)
-        info["goal_distance"] = self._goal_distance()
+        info["goal_distance"] = distance
         obs = self._observation()
         if self.render_mode == "human":
             self.render()
@@ -229,7 +230,7 @@ class SRPBNavEnv(gym.Env):
         self.sim.step(self._command(action), planning)
         collided = bool(self.sim.collisions[0].any())
         self._collided |= collided
-        distance = self._goal_distance()
+        distance = self.sim.goal_distance()
         reached = self._goal_reached(distance)
         terminated = reached or (collided and self.collision_mode == "terminate")
         truncated = not terminated and self.sim.t >= self.sim.layout.time_limit - 1e-9
@@ -322,10 +323,6 @@ class SRPBNavEnv(gym.Env):
         else:
             cmd[0, 2] = a[1] * cfg.w_max
         return cmd
-
-    def _goal_distance(self) -> float:
-        pose, goal = self.sim.world.robot_pose[0], self.sim.robots[0].goal
-        return math.hypot(goal[0] - pose[0], goal[1] - pose[1])
 
     def _goal_reached(self, distance: float) -> bool:
         yaw = self.sim.world.robot_pose[0, 2]

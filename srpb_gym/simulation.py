@@ -328,11 +328,10 @@ class Simulation:
         return gids[:g], sizes[:g], members[:m]
 
     # ------------------------------------------------------------------ queries
-    def goal_distance(self) -> NDArray[np.float64]:
-        """(R,) distance from each robot to its goal position [m]."""
-        pose = self.world.robot_pose
-        goals = np.array([s.goal[:2] for s in self.robots])
-        return np.hypot(goals[:, 0] - pose[:, 0], goals[:, 1] - pose[:, 1])
+    def goal_distance(self, robot: int = 0) -> float:
+        """Distance from a robot to its goal position [m]."""
+        pose, goal = self.world.robot_pose[robot], self.robots[robot].goal
+        return math.hypot(goal[0] - pose[0], goal[1] - pose[1])
 
     @property
     def collisions(self) -> NDArray[np.bool_]:
