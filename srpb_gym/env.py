@@ -1,12 +1,16 @@
-"""The Gymnasium environment: one robot navigating among people, scored by SRPB."""
+"""The Gymnasium environment: one robot navigating among people, scored by SRPB.
+
+:class:`SRPBNavEnv` is a thin adapter over one :class:`~srpb_gym.simulation.Simulation` and
+one :class:`~srpb_gym.task.RobotTask`: the task owns the robot's action decoding, goal
+rule, reward, observation, info and episode end; the adapter adds the Gymnasium API, the
+episode's time and step limits, the planner's computation time and rendering.
+"""
 
 from __future__ import annotations
 
 import math
-import os
 import time
 import uuid
-import warnings
 from collections.abc import Mapping
 from dataclasses import replace
 from typing import Any, ClassVar
@@ -15,34 +19,39 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from srpb_gym.metrics import METRIC_NAMES, SRPBMetricWarning, evaluate, resolve_params
-from srpb_gym.metrics.params import check_semantics
-from srpb_gym.observation import ObservationBuilder, ObservationConfig
+from srpb_gym.errors import InputError
+from srpb_gym.metrics.params import MetricParams
 from srpb_gym.perception.detector import DetectorConfig
 from srpb_gym.perception.lidar import LidarConfig
 from srpb_gym.perception.tracker import TrackerConfig
 from srpb_gym.planners.base import Knowledge
-from srpb_gym.reward import SRPB_TERMS, TERMS, RewardFunction, resolve_weights
 from srpb_gym.scenarios import load_scenario, sample
 from srpb_gym.sim.crowd import SocialForceConfig
-from srpb_gym.sim.layout import RobotLayout
+from srpb_gym.sim.layout import EpisodeLayout, RobotLayout
 from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.simulation import SimConfig, Simulation
+from srpb_gym.task import COLLISION_MODES, RobotTask, build_task
 
-COLLISION_MODES = ("terminate", "continue")
 RESET_OPTIONS = ("people", "start", "goal")
+SENSORS = ("lidar", "detector", "tracker")
+
+__all__ = ["COLLISION_MODES", "RESET_OPTIONS", "SRPBNavEnv", "StepLimitSync"]
 
 
 class SRPBNavEnv(gym.Env):
     """Human-aware navigation in a 2-D world of walls and people, scored by the SRPB metrics.
 
     ## Description
-    A differential-drive robot (circumradius 0.275 m, the limits of the SRPB paper's Table
-    2) drives from a start to a goal pose through a scenario of walls, walking people
-    (social-force model) and standing F-formations. It senses with a lidar and a people
-    detector whose detections feed a Kalman tracker; the observation, the SRPB reward terms
-    and the episode metrics use the tracked people (with their covariances), like the
-    paper's robot, and the metrics are also reported from ground truth.
+    A robot (a differential drive by default: circumradius 0.275 m and the limits of the
+    SRPB paper's Table 2; ``robot={...}`` changes them) drives from a start to a goal pose
+    through a scenario of walls, walking people (social-force model) and standing
+    F-formations. It senses with a lidar and a people detector whose detections feed a
+    Kalman tracker; the observation, the SRPB reward terms and the episode metrics use the
+    tracked people (with their covariances), like the paper's robot, and the metrics are
+    also reported from ground truth. The robot's settings are the one source for
+    everything that depends on them: the physics, the scenario's placement and
+    reachability checks, the metric parameters (``robot_circumradius``,
+    ``robot_max_speed``), the planners' knowledge and the renderer.
 
     ## Action Space
     ``Box(-1, 1, (2,), float32)``: (linear, angular) command. Linear a >= 0 maps to
@@ -89,13 +98,22 @@ class SRPBNavEnv(gym.Env):
 
     ## Episode End
     Terminated when the robot is within the scenario's goal tolerance of the goal position
-    and within ``goal_tolerance_yaw`` (metric parameter, 0.2 rad) of its heading, or on a
-    collision when ``collision="terminate"`` (default; ``"continue"`` penalises and goes
-    on). Truncated at the scenario's time limit. ``info["is_success"]``: goal reached with
-    no collision in the episode. On the last step ``info["srpb/<metric>"]`` holds every
-    episode metric from the tracked people and ``info["srpb_gt/<metric>"]`` from ground
-    truth (0.0 on earlier steps; every key is present from ``reset`` on, so vector envs
-    and ``Monitor(info_keywords=...)`` work).
+    and within ``goal_tolerance_yaw`` (metric parameter, 0.2 rad) of its heading (the rule
+    of ``m_goal``), or on a collision when ``collision="terminate"`` (default;
+    ``"continue"`` penalises and goes on). Truncated at the scenario's time limit, or at
+    the step limit of ``gym.make(..., max_episode_steps=N)`` (registered ids: the
+    scenario's time limit at the default 0.1 s control step), whichever comes first: the
+    environment ends the episode itself at that step, so ``TimeLimit`` and the environment
+    agree. ``info["is_success"]``: goal reached with no collision in the episode.
+
+    The last ``info`` of every episode, terminated or truncated, holds its SRPB metrics:
+    ``info["srpb/<metric>"]`` from the tracked people, ``info["srpb_gt/<metric>"]`` from
+    ground truth (equal to ``srpb-gym metrics`` of the recorded episode),
+    ``info["srpb_semantics"]`` and ``info["srpb_params"]`` (every metric parameter used).
+    Earlier steps do not have these keys, so a metric that was not computed can never be
+    read as a number (vector environments mark them absent in ``info["_srpb/<metric>"]``;
+    ``Monitor(info_keywords=...)`` reads them at the episode end). ``step`` after the end
+    raises ``gymnasium.error.ResetNeeded``.
 
     ## Arguments
     ``scenario``: a packaged name (corridor, fformation, crossing, crowd, doorway) or a path
@@ -103,18 +121,22 @@ class SRPBNavEnv(gym.Env):
     mapping of :class:`~srpb_gym.observation.ObservationConfig`. ``reward``: preset name.
     ``reward_weights``: weights by term. ``collision``: "terminate" or "continue".
     ``metrics``: ``{"semantics": "paper"|"reference", "preset": "paper"|"srpb-code",
-    "params": {...}}``. ``record_dir``: write every episode there as SRPB native logs and an
-    ``.npz`` record. ``sim``, ``robot``, ``sensors`` (``lidar``, ``detector``,
-    ``tracker``), ``crowd``: overrides of the simulation settings. Every argument is plain
-    data; ``reset(options=...)`` takes ``people`` (False: an empty variant), ``start`` and
-    ``goal`` (x, y, yaw).
+    "params": {...}}``; the robot's circumradius and largest speed and the scenario's goal
+    tolerance replace the preset's values, and ``params`` replaces any value.
+    ``record_dir``: write every episode there as SRPB native logs and an ``.npz`` record
+    (created and checked when the environment is made). ``sim``, ``robot``, ``sensors``
+    (``lidar``, ``detector``, ``tracker``), ``crowd``: overrides of the simulation
+    settings. Every argument is plain data; ``reset(options=...)`` takes ``people``
+    (False: an empty variant), ``start`` and ``goal`` (x, y, yaw).
 
     The planner's computation time (m_cef, m_cre) is the wall time between the previous
     ``reset``/``step`` returning and this ``step`` starting, unless a harness calls
     :meth:`set_planning_time` before the step.
 
     ## Version History
-    * v0: initial release.
+    * v0: initial release. Episode metrics appear only in the last ``info`` of an
+      episode (earlier they read 0.0) and at every truncation, ``TimeLimit``'s included;
+      the robot's radius and speed set the metric parameters.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -135,70 +157,62 @@ class SRPBNavEnv(gym.Env):
         crowd: Mapping[str, Any] | None = None,
     ) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']}")
-        if collision not in COLLISION_MODES:
-            raise ValueError(f"collision must be one of {COLLISION_MODES}, got {collision!r}")
-        self.render_mode, self.collision_mode, self.record_dir = render_mode, collision, record_dir
+            raise InputError(f"expected one of {self.metadata['render_modes']}, got "
+                             f"{render_mode!r}", key="render_mode")  # fmt: skip
+        self.render_mode = render_mode
+        robot_cfg = RobotConfig.from_spec(robot)
         self.scenario = load_scenario(scenario)
-        self.sim = self._build_simulation(sim, robot, sensors, crowd)
-        self._metric_settings(metrics)
-        robot_cfg = self.sim.robot_config
-        self.obs_builder = ObservationBuilder(
-            ObservationConfig.from_spec(observation), self.sim.lidar_config.n_beams,
-            self.sim.lidar_config.range_max, max(robot_cfg.v_max, -robot_cfg.v_min),
-            robot_cfg.vy_max, robot_cfg.w_max,
+        self.sim = _build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
+        self.task: RobotTask = build_task(
+            self.sim, 0, self.scenario.robot.goal_tolerance, observation, reward,
+            reward_weights, collision, metrics, record_dir,
         )  # fmt: skip
-        self.observation_space = self.obs_builder.space
-        dims = robot_cfg.action_dims
-        self.action_space = gym.spaces.Box(-1.0, 1.0, (dims,), np.float32)
-        self.reward_fn = RewardFunction(resolve_weights(reward, reward_weights), self.params,
-                                        self.semantics)  # fmt: skip
-        self._info_template = self._make_info_template()
-        self._reward_keys = [f"reward_{t}" for t in TERMS]
-        self._step_keys = [f"srpb_step/{t}" for t in SRPB_TERMS]
+        self.observation_space = self.task.observation_space
+        self.action_space = self.task.action_space
         self._cmd = np.zeros((1, 3))
         self._planning_override: float | None = None
+        self._step_limit: int | None = None
+        self._steps = 0
         self._renderer = None
         self._token, self._episode = uuid.uuid4().hex[:8], 0
         self._seed: int | None = None
 
-    # ------------------------------------------------------------------ construction
-    def _build_simulation(self, sim, robot, sensors, crowd) -> Simulation:
-        sensors = dict(sensors or {})
-        unknown = set(sensors) - {"lidar", "detector", "tracker"}
-        if unknown:
-            raise ValueError(f"unknown sensors {sorted(unknown)}; valid: lidar, detector, tracker")
-        spec = self.scenario.sensors
-        return Simulation(
-            SimConfig.from_spec(sim),
-            RobotConfig.from_spec(robot),
-            LidarConfig.from_spec(sensors.get("lidar", spec.lidar), "sensors.lidar"),
-            DetectorConfig.from_spec(sensors.get("detector", spec.detector), "sensors.detector"),
-            TrackerConfig.from_spec(sensors.get("tracker", spec.tracker), "sensors.tracker"),
-            SocialForceConfig.from_spec(crowd, "crowd"),
-        )
+    # ------------------------------------------------------------------ settings
+    @property
+    def params(self) -> MetricParams:
+        """The SRPB metric parameters of the episodes (also the reward's)."""
+        return self.task.params
 
-    def _metric_settings(self, metrics: Mapping[str, Any] | None) -> None:
-        metrics = dict(metrics or {})
-        unknown = set(metrics) - {"semantics", "preset", "params"}
-        if unknown:
-            raise ValueError(
-                f"unknown metrics keys {sorted(unknown)}; valid: semantics, preset, params"
+    @property
+    def semantics(self) -> str:
+        """The SRPB semantics of the episode metrics: ``"paper"`` or ``"reference"``."""
+        return self.task.metrics.semantics
+
+    @property
+    def record_dir(self) -> str | None:
+        """Where finished episodes are written (``None``: not recorded)."""
+        return self.task.record_dir
+
+    def set_step_limit(self, steps: int | None) -> None:
+        """End every episode after at most ``steps`` steps (truncated, with its metrics),
+        besides the scenario's time limit. :class:`StepLimitSync` calls this with the limit
+        of Gymnasium's ``TimeLimit`` wrapper, so both end the episode at the same step."""
+        if steps is not None and not (isinstance(steps, int) and steps > 0):
+            raise InputError(f"expected a whole number > 0, got {steps!r}",
+                             key="max_episode_steps")  # fmt: skip
+        self._step_limit = steps
+
+    def _warn_short_limit(self) -> None:
+        """Warn when the step limit ends episodes before the scenario's time limit."""
+        steps, dt = self._step_limit, self.sim.config.control_dt
+        limit = self.scenario.time_limit
+        if steps is not None and steps * dt < limit - 1e-9:
+            gym.logger.warn(
+                f"{self.scenario.name}: episodes end after {steps} steps ({steps * dt:g} s), "
+                f"before the scenario's time limit ({limit:g} s at control_dt {dt:g} s); "
+                f"pass max_episode_steps={math.ceil(limit / dt - 1e-9)} to gym.make for the "
+                f"whole scenario"
             )
-        self.semantics = check_semantics(metrics.get("semantics", "paper"))
-        params = {"goal_tolerance_xy": self.scenario.robot.goal_tolerance}
-        params |= dict(metrics.get("params") or {})
-        self.params = resolve_params(metrics.get("preset", "paper"), **params)
-
-    def _make_info_template(self) -> dict[str, Any]:
-        info: dict[str, Any] = {f"reward_{t}": 0.0 for t in TERMS}
-        info |= {f"srpb_step/{t}": 0.0 for t in SRPB_TERMS}
-        info |= {"is_success": False, "collision": False, "goal_distance": 0.0, "t": 0.0}
-        # episode metrics: filled on the last step; 0.0 before (NaN would make identical
-        # runs compare unequal, and planning time, being wall time, is not reported here)
-        info |= {f"srpb/{m}": 0.0 for m in METRIC_NAMES}
-        info |= {f"srpb_gt/{m}": 0.0 for m in METRIC_NAMES}
-        return info
 
     # ------------------------------------------------------------------ API
     def reset(
@@ -206,16 +220,10 @@ class SRPBNavEnv(gym.Env):
     ) -> tuple[Any, dict[str, Any]]:
         super().reset(seed=seed)
         self._seed = seed
-        layout = self._layout(options or {})
-        self.sim.reset(layout, self.np_random)
-        self._collided = False
-        record = self.sim.robots[0].record
-        distance = self.sim.goal_distance()
-        self.reward_fn.reset(record, distance)
+        self.sim.reset(self._layout(options), self.np_random)
+        self._steps = 0
         self._episode += 1
-        info = dict(self._info_template)
-        info["goal_distance"] = distance
-        obs = self._observation()
+        obs, info = self.task.reset()
         if self.render_mode == "human":
             self.render()
         self._last_return = time.perf_counter()
@@ -223,24 +231,23 @@ class SRPBNavEnv(gym.Env):
 
     def step(self, action: Any) -> tuple[Any, float, bool, bool, dict[str, Any]]:
         started = time.perf_counter()
+        if self.task.done:
+            raise gym.error.ResetNeeded(
+                "call reset() before step(): no episode has started"
+                if self._episode == 0 else
+                "the episode has ended (terminated or truncated); call reset() before step()"
+            )  # fmt: skip
         planning = self._planning_override
         if planning is None:
             planning = started - self._last_return
         self._planning_override = None
-        self.sim.step(self._command(action), planning)
-        collided = bool(self.sim.collisions[0].any())
-        self._collided |= collided
-        distance = self.sim.goal_distance()
-        reached = self._goal_reached(distance)
-        terminated = reached or (collided and self.collision_mode == "terminate")
-        truncated = not terminated and self.sim.t >= self.sim.layout.time_limit - 1e-9
-        success = reached and not self._collided
-        record = self.sim.robots[0].record
-        reward = self.reward_fn.step(record, distance, success, collided)
-        info = self._step_info(collided, success, distance)
+        self.task.decode(action, self._cmd[0])
+        self.sim.step(self._cmd, planning)
+        self._steps += 1
+        obs, reward, terminated, info = self.task.step()
+        truncated = not terminated and self._out_of_time()
         if terminated or truncated:
-            self._finish_episode(info)
-        obs = self._observation()
+            self.task.finish(info, self.episode_name())
         if self.render_mode == "human":
             self.render()
         self._last_return = time.perf_counter()
@@ -270,104 +277,11 @@ class SRPBNavEnv(gym.Env):
 
     def knowledge(self) -> Knowledge:
         """What the robot knows now, for classical planners (never the ground truth)."""
-        sim, state = self.sim, self.sim.robots[0]
-        return Knowledge(
-            walls=sim.walls, bounds=sim.layout.bounds, pose=sim.world.robot_pose[0].copy(),
-            velocity=sim.velocity[0].copy(), command=sim.command[0].copy(),
-            goal=state.goal.copy(), goal_tolerance=self.params.goal_tolerance_xy,
-            goal_yaw_tolerance=self.params.goal_tolerance_yaw, tracks=state.tracker.tracks(),
-            scan=state.scan.copy(), scan_angles=state.lidar.angles,
-            range_max=sim.lidar_config.range_max, robot=sim.robot_config,
-            control_dt=sim.config.control_dt, t=sim.t,
-        )  # fmt: skip
+        return self.task.knowledge()
 
     def running_metrics(self) -> dict[str, float]:
         """The episode's SRPB metrics so far (tracked people), for display."""
-        record = self.sim.robots[0].record
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", SRPBMetricWarning)
-            values = evaluate(record, self.semantics, self.params)
-        keys = ("m_psi", "m_fsi", "m_dir", "m_obs", "m_plin", "m_chc")
-        return {"t": self.sim.t} | {k: values[k] for k in keys}
-
-    # ------------------------------------------------------------------ internals
-    def _layout(self, options: dict[str, Any]):
-        unknown = set(options) - set(RESET_OPTIONS)
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; valid: {RESET_OPTIONS}")
-        layout = sample(self.scenario, self.np_random)
-        if not options.get("people", True):
-            layout = replace(layout, people=(), formations=())
-        if "start" in options or "goal" in options:
-            robot = layout.robots[0]
-            start = tuple(float(v) for v in options.get("start", robot.start))
-            goal = tuple(float(v) for v in options.get("goal", robot.goal))
-            if len(start) != 3 or len(goal) != 3:
-                raise ValueError("start and goal options are (x, y, yaw)")
-            layout = replace(layout, robots=(RobotLayout(start, goal),))
-        return layout
-
-    def _command(self, action: Any) -> NDArray[np.float64]:
-        """(1, 3) body-frame command of an action (see the class docstring)."""
-        a = np.asarray(action, dtype=np.float64)
-        if a.shape != self.action_space.shape:
-            raise ValueError(f"action must have shape {self.action_space.shape}, got {a.shape}")
-        a = a.tolist()
-        if not all(map(math.isfinite, a)):
-            raise ValueError(f"action must be finite, got {a}")
-        a = [min(max(v, -1.0), 1.0) for v in a]
-        cfg, cmd = self.sim.robot_config, self._cmd
-        cmd[0, 0] = a[0] * (cfg.v_max if a[0] >= 0 else -cfg.v_min)
-        if cfg.kinematics == "holonomic":
-            cmd[0, 1], cmd[0, 2] = a[1] * cfg.vy_max, a[2] * cfg.w_max
-        else:
-            cmd[0, 2] = a[1] * cfg.w_max
-        return cmd
-
-    def _goal_reached(self, distance: float) -> bool:
-        yaw = self.sim.world.robot_pose[0, 2]
-        goal_yaw = self.sim.robots[0].goal[2]
-        yaw_error = abs(math.remainder(goal_yaw - yaw, 2 * math.pi))
-        return (distance <= self.params.goal_tolerance_xy
-                and yaw_error <= self.params.goal_tolerance_yaw)  # fmt: skip
-
-    def _observation(self):
-        state = self.sim.robots[0]
-        pose = self.sim.world.robot_pose[0]
-        return self.obs_builder.build(pose, state.goal, self.sim.velocity[0], state.scan,
-                                      state.tracker.tracks())  # fmt: skip
-
-    def _step_info(self, collided: bool, success: bool, distance: float) -> dict[str, Any]:
-        info = dict(self._info_template)
-        info.update(zip(self._reward_keys, self.reward_fn.weighted.tolist()))
-        info.update(zip(self._step_keys, self.reward_fn.values[-len(SRPB_TERMS) :].tolist()))
-        info["is_success"], info["collision"] = success, collided
-        info["goal_distance"], info["t"] = distance, self.sim.t
-        return info
-
-    def _finish_episode(self, info: dict[str, Any]) -> None:
-        state = self.sim.robots[0]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", SRPBMetricWarning)
-            tracked = evaluate(state.record, self.semantics, self.params)
-            truth = evaluate(state.gt_record, self.semantics, self.params)
-        for name in METRIC_NAMES:
-            info[f"srpb/{name}"] = tracked[name]
-            info[f"srpb_gt/{name}"] = truth[name]
-        if self.record_dir is not None:
-            self._write_episode()
-
-    def _write_episode(self) -> None:
-        from srpb_gym.metrics.io_native import write_native
-        from srpb_gym.metrics.io_npz import save_record
-
-        os.makedirs(self.record_dir, exist_ok=True)
-        stem = self.episode_name()
-        base = os.path.join(self.record_dir, stem)
-        record = self.sim.robots[0].record
-        write_native(record, f"{base}_robot.txt", f"{base}_people.txt", f"{base}_groups.txt")
-        save_record(record, f"{base}.npz")
-        save_record(self.sim.robots[0].gt_record, f"{base}_gt.npz")
+        return self.task.running_metrics()
 
     def episode_name(self) -> str:
         """File stem of the current episode: ``<scenario>_seed<seed>`` when reset with a
@@ -375,3 +289,79 @@ class SRPBNavEnv(gym.Env):
         if self._seed is not None:
             return f"{self.scenario.name}_seed{self._seed}"
         return f"{self.scenario.name}_{self._token}_{self._episode:05d}"
+
+    # ------------------------------------------------------------------ internals
+    def _out_of_time(self) -> bool:
+        if self._step_limit is not None and self._steps >= self._step_limit:
+            return True
+        return self.sim.t >= self.sim.layout.time_limit - 1e-9
+
+    def _layout(self, options: dict[str, Any] | None) -> EpisodeLayout:
+        options = dict(options or {})
+        unknown = sorted(set(options) - set(RESET_OPTIONS))
+        if unknown:
+            raise InputError(f"unknown reset option; valid: {', '.join(RESET_OPTIONS)}",
+                             key=f"options.{unknown[0]}")  # fmt: skip
+        layout = sample(self.scenario, self.np_random)
+        if not options.get("people", True):
+            layout = replace(layout, people=(), formations=())
+        if "start" in options or "goal" in options:
+            robot = layout.robots[0]
+            start = _pose_option(options.get("start", robot.start), "start")
+            goal = _pose_option(options.get("goal", robot.goal), "goal")
+            layout = replace(layout, robots=(RobotLayout(start, goal),))
+        return layout
+
+
+class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):
+    """Tells the environment the step limit of the ``TimeLimit`` wrapper beneath it.
+
+    Registered with every srpb-gym id (``additional_wrappers``), so ``gym.make(id,
+    max_episode_steps=N)`` gives episodes that the environment itself ends at step N, with
+    the episode metrics in the last ``info``; ``TimeLimit`` then agrees. It changes nothing
+    else.
+    """
+
+    def __init__(self, env: gym.Env) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self)
+        super().__init__(env)
+        spec = env.spec
+        limit = spec.max_episode_steps if spec is not None else None
+        base = env.unwrapped
+        if isinstance(base, SRPBNavEnv):
+            base.set_step_limit(limit)
+            registered = gym.registry.get(spec.id) if spec is not None else None
+            if registered is not None and registered.max_episode_steps == limit:
+                base._warn_short_limit()  # the registered default, not the user's choice
+
+
+def _build_simulation(
+    scenario: Any, sim: Mapping[str, Any] | None, robot: RobotConfig,
+    sensors: Mapping[str, Any] | None, crowd: Mapping[str, Any] | None,
+) -> Simulation:  # fmt: skip
+    """The simulation of the environment's arguments; sensors default to the scenario's."""
+    sensors = dict(sensors or {})
+    unknown = sorted(set(sensors) - set(SENSORS))
+    if unknown:
+        raise InputError(f"unknown sensor; valid: {', '.join(SENSORS)}",
+                         key=f"sensors.{unknown[0]}")  # fmt: skip
+    spec = scenario.sensors
+    return Simulation(
+        SimConfig.from_spec(sim),
+        robot,
+        LidarConfig.from_spec(sensors.get("lidar", spec.lidar), "sensors.lidar"),
+        DetectorConfig.from_spec(sensors.get("detector", spec.detector), "sensors.detector"),
+        TrackerConfig.from_spec(sensors.get("tracker", spec.tracker), "sensors.tracker"),
+        SocialForceConfig.from_spec(crowd, "crowd"),
+    )
+
+
+def _pose_option(value: Any, name: str) -> tuple[float, float, float]:
+    """An (x, y, yaw) reset option as floats; anything else is an error naming the key."""
+    try:
+        pose = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        pose = ()
+    if len(pose) != 3:
+        raise InputError(f"expected (x, y, yaw), got {value!r}", key=f"options.{name}")
+    return pose  # type: ignore[return-value]

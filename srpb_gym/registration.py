@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import gymnasium as gym
 import yaml
+from gymnasium.envs.registration import WrapperSpec
 
 from srpb_gym.resources import scenarios_dir
 
@@ -19,6 +20,9 @@ SCENARIO_IDS: dict[str, str] = {
     "SRPB-Doorway-v0": "doorway",
 }
 CUSTOM_ID = "SRPB-Custom-v0"
+#: applied by gym.make outside TimeLimit: tells the environment the step limit, so that it
+#: ends a truncated episode itself, with the episode metrics in its last info
+STEP_LIMIT_SYNC = WrapperSpec("StepLimitSync", "srpb_gym.env:StepLimitSync", {})
 
 
 def _max_steps(scenario: str) -> int:
@@ -33,6 +37,7 @@ def register_envs() -> None:
     for env_id, scenario in SCENARIO_IDS.items():
         if env_id not in gym.registry:
             gym.register(env_id, entry_point=ENTRY_POINT, kwargs={"scenario": scenario},
-                         max_episode_steps=_max_steps(scenario))  # fmt: skip
+                         max_episode_steps=_max_steps(scenario),
+                         additional_wrappers=(STEP_LIMIT_SYNC,))  # fmt: skip
     if CUSTOM_ID not in gym.registry:
-        gym.register(CUSTOM_ID, entry_point=ENTRY_POINT)
+        gym.register(CUSTOM_ID, entry_point=ENTRY_POINT, additional_wrappers=(STEP_LIMIT_SYNC,))

@@ -34,6 +34,7 @@ import numpy as np
 import yaml
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.errors import InputError
 from srpb_gym.metrics import kernels
 from srpb_gym.metrics.episode import entity_values
@@ -129,7 +130,7 @@ class RewardFunction:
         moving = dt > 0  # a zero-length step adds nothing (paper semantics)
         v[_T["vsm"]] = math.hypot(abs(dvx) / dt, abs(dvy) / dt) if moving else 0.0
         v[_T["hsm"]] = abs(dw) / dt if moving else 0.0
-        v[_T["chc"]] = abs(kernels.wrap_angle(new[8] - prev[8]))
+        v[_T["chc"]] = abs(wrap_angle(new[8] - prev[8]))
         v[_T["psi"]], v[_T["fsi"]], v[_T["dir"]] = dt * prev[9], dt * prev[10], dt * prev[11]
         self._sample, self._goal_distance = new, goal_distance
         np.multiply(v, self.weights, out=self.weighted)

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.metrics import kernels
 from srpb_gym.metrics.ellipse import accept_fit, taubin_fit
 from srpb_gym.metrics.params import MetricParams, check_semantics, resolve_params
@@ -162,7 +163,7 @@ def motion_metrics(
     out["m_mef"] = total
     out["m_plin"] = float(np.hypot(np.diff(x), np.diff(y)).sum())
     dyaw = np.diff(yaw)
-    out["m_chc"] = float(np.abs(dyaw if reference else _wrap(dyaw)).sum())
+    out["m_chc"] = float(np.abs(dyaw if reference else wrap_angle(dyaw)).sum())
     flags = _flags(col("vx"), col("vy"), col("omega"), params, reference)
     with np.errstate(divide="ignore", invalid="ignore"):
         if reference:
@@ -181,19 +182,20 @@ def motion_metrics(
 def goal_reached(record: EpisodeRecord, params: MetricParams) -> bool:
     """Whether the last sample is within the goal tolerances (position and yaw)."""
     row = record.robot[-1]
-    dx = row[R["goal_x"]] - row[R["x"]]
-    dy = row[R["goal_y"]] - row[R["y"]]
-    dyaw = kernels.wrap_angle(float(row[R["goal_yaw"]] - row[R["yaw"]]))
-    return bool(math.hypot(dx, dy) <= params.goal_tolerance_xy
-                and abs(dyaw) <= params.goal_tolerance_yaw)  # fmt: skip
+    return at_goal(row[R["x"]], row[R["y"]], row[R["yaw"]], row[R["goal_x"]], row[R["goal_y"]],
+                   row[R["goal_yaw"]], params.goal_tolerance_xy,
+                   params.goal_tolerance_yaw)  # fmt: skip
 
 
-def _wrap(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Angles mapped to (-pi, pi], elementwise."""
-    r = np.mod(a + np.pi, 2.0 * np.pi) - np.pi
-    inside = (a > -np.pi) & (a <= np.pi)
-    r = np.where(inside, a, r)
-    return np.where(r == -np.pi, np.pi, r)
+def at_goal(
+    x: float, y: float, yaw: float, goal_x: float, goal_y: float, goal_yaw: float,
+    tolerance_xy: float, tolerance_yaw: float,
+) -> bool:  # fmt: skip
+    """The SRPB goal rule: the position within ``tolerance_xy`` [m] of the goal and the
+    heading within ``tolerance_yaw`` [rad] of the goal's (``m_goal``, and the end of an
+    episode in the environments)."""
+    return bool(math.hypot(goal_x - x, goal_y - y) <= tolerance_xy
+                and abs(wrap_angle(float(goal_yaw - yaw))) <= tolerance_yaw)  # fmt: skip
 
 
 def _flags(vx, vy, omega, params: MetricParams, reference: bool) -> dict[str, NDArray[np.bool_]]:

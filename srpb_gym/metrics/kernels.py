@@ -18,24 +18,14 @@ import math
 import numpy as np
 from numba import njit
 
+from srpb_gym.angles import wrap_angle
+
 PI = math.pi
-TWO_PI = 2.0 * math.pi
 # Distance along the robot's heading line within which the reference tool searches for the
 # intersection used by m_dir [m].
 REFERENCE_DIR_SEARCH = 1000.0
 # Radius of the 1-member O-space circle and fallback minor semi-axis in the reference tool [m].
 REFERENCE_OCCUPANCY = 0.28
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def wrap_angle(a: float) -> float:
-    """``a`` mapped to (-pi, pi]."""
-    if -PI < a <= PI:
-        return a
-    r = (a + PI) - TWO_PI * math.floor((a + PI) / TWO_PI)  # in [0, 2 pi)
-    if r == 0.0:
-        r = TWO_PI
-    return r - PI
 
 
 @njit(cache=True, inline="always", error_model="numpy")

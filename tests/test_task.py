@@ -1,0 +1,304 @@
+"""The per-robot task layer: episode ends, reward terms, observation layout, robot settings."""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import srpb_gym  # noqa: F401 - registers the environments
+from srpb_gym.metrics import METRIC_NAMES, evaluate, evaluate_detailed
+from srpb_gym.metrics.io_npz import load_record
+from srpb_gym.metrics.record import R
+from srpb_gym.observation import ObservationBuilder, ObservationConfig
+from srpb_gym.perception.tracker import Tracks
+from srpb_gym.reward import SRPB_TERMS, TASK_TERMS, TERMS
+from srpb_gym.sim.robot import RobotConfig
+from srpb_gym.task import MetricSettings, robot_max_speed
+
+
+def same(a: float, b: float) -> bool:
+    return (math.isnan(a) and math.isnan(b)) or a == b
+
+
+def drive(env: gym.Env, seed: int, actions, options=None) -> tuple[dict, int, bool, bool]:
+    """Run ``actions`` (a callable of the step number) to the episode's end."""
+    env.reset(seed=seed, options=options)
+    k = 0
+    while True:
+        env.unwrapped.set_planning_time(0.001)
+        _, _, terminated, truncated, info = env.step(actions(k))
+        k += 1
+        if terminated or truncated:
+            return info, k, terminated, truncated
+
+
+def assert_metrics_of_record(info: dict, directory, env: gym.Env) -> None:
+    stem = directory / env.unwrapped.episode_name()
+    offline = evaluate(load_record(f"{stem}.npz"))
+    truth = evaluate(load_record(f"{stem}_gt.npz"))
+    for name in METRIC_NAMES:
+        assert same(info[f"srpb/{name}"], offline[name]), name
+        assert same(info[f"srpb_gt/{name}"], truth[name]), name
+
+
+def spin(_k: int) -> np.ndarray:
+    return np.array([0.0, 1.0], dtype=np.float32)  # rotates in place: no collision, no goal
+
+
+# ------------------------------------------------------------------ episode ends
+def test_time_limit_wrapper_truncation_has_the_metrics(tmp_path):
+    env = gym.make("SRPB-Corridor-v0", max_episode_steps=50, record_dir=str(tmp_path))
+    info, steps, terminated, truncated = drive(env, 3, spin)
+    assert (steps, terminated, truncated) == (50, False, True)
+    assert info["srpb/m_mef"] == pytest.approx(5.0)
+    assert info["srpb/m_iprot"] > 50.0  # rotating in place: really computed, not a 0.0
+    assert_metrics_of_record(info, tmp_path, env)
+
+
+def test_scenario_time_limit_truncation_has_the_metrics(tmp_path):
+    env = gym.make("SRPB-Crossing-v0", max_episode_steps=-1, record_dir=str(tmp_path))
+    info, steps, _, truncated = drive(env, 0, spin)
+    assert truncated and steps == 600 and info["srpb/m_mef"] == pytest.approx(60.0)
+    assert_metrics_of_record(info, tmp_path, env)
+
+
+def test_changed_control_step_truncates_with_the_metrics(tmp_path):
+    with pytest.warns(UserWarning, match="max_episode_steps=1200"):
+        env = gym.make("SRPB-Corridor-v0", sim={"control_dt": 0.05}, record_dir=str(tmp_path))
+    info, steps, _, truncated = drive(env, 1, spin)
+    assert truncated and steps == 600 and info["srpb/m_mef"] == pytest.approx(30.0)
+    assert_metrics_of_record(info, tmp_path, env)
+    whole = gym.make("SRPB-Corridor-v0", sim={"control_dt": 0.05}, max_episode_steps=1200)
+    info, steps, _, truncated = drive(whole, 1, spin)
+    assert truncated and steps == 1200 and info["srpb/m_mef"] == pytest.approx(60.0)
+
+
+def test_metrics_only_on_the_last_step_and_final_info_says_the_parameters():
+    env = gym.make("SRPB-Corridor-v0", max_episode_steps=4)
+    _, info = env.reset(seed=0)
+    for k in range(4):
+        assert "srpb/m_psi" not in info and "srpb_params" not in info
+        _, _, _, truncated, info = env.step(spin(k))
+    assert truncated and info["srpb_semantics"] == "paper"
+    assert info["srpb_params"]["robot_circumradius"] == 0.275
+    assert info["srpb_params"]["robot_max_speed"] == 0.5
+
+
+def test_step_before_reset_and_after_the_end_are_clear_errors():
+    env = gym.make("SRPB-Corridor-v0", max_episode_steps=2).unwrapped
+    with pytest.raises(gym.error.ResetNeeded, match="reset"):
+        env.step(np.zeros(2, dtype=np.float32))
+    env = gym.make("SRPB-Corridor-v0", max_episode_steps=2)
+    drive(env, 0, spin)
+    with pytest.raises(gym.error.ResetNeeded, match="ended"):
+        env.unwrapped.step(np.zeros(2, dtype=np.float32))
+
+
+# ------------------------------------------------------------------ reward
+def test_every_reward_term_by_hand():
+    weights = {t: float(i + 1) for i, t in enumerate(TERMS)}  # distinct, all non-zero
+    env = gym.make("SRPB-FFormation-v0", reward_weights=weights, max_episode_steps=60)
+    base = env.unwrapped
+    env.reset(seed=2, options={"start": (1.0, 0.5, 0.0)})  # 0.5 m from the lower wall
+    segments = [((1.0, 0.0), 12), ((0.0, 1.0), 10), ((-1.0, 0.0), 10), ((0.0, 0.0), 6),
+                ((1.0, 0.5), 22)]  # fmt: skip
+    actions = [a for a, n in segments for _ in range(n)]
+    infos, rewards = [], []
+    for k in range(60):
+        _, reward, terminated, truncated, info = env.step(np.array(actions[k], np.float32))
+        infos.append(info)
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    rec = base.task.record
+    robot = rec.robot
+    ev = evaluate_detailed(rec, "paper", base.params)
+    p = base.params
+    gx, gy = robot[0, R["goal_x"]], robot[0, R["goal_y"]]
+    dist = np.hypot(gx - robot[:, R["x"]], gy - robot[:, R["y"]])
+    for k, info in enumerate(infos):
+        a, b = robot[k], robot[k + 1]
+        dt = b[R["t"]] - a[R["t"]]
+        vx, vy, w = a[R["vx"]], a[R["vy"]], a[R["omega"]]
+        osc = (
+            math.hypot(vx, vy) < p.osc_vel_lin_x_threshold
+            and abs(vx) < p.osc_vel_x_threshold
+            and abs(vy) < p.osc_vel_y_threshold
+            and abs(w) < p.osc_vel_ang_z_threshold
+        )
+        iprot = (
+            abs(vx) < p.stop_speed_tolerance
+            and abs(vy) < p.stop_speed_tolerance
+            and abs(w) >= p.osc_vel_ang_z_threshold
+        )
+        psi = ev.psi[rec.people_sample == k]
+        dirv = ev.dir[rec.people_sample == k]
+        fsi = ev.fsi[rec.group_sample == k]
+        expected = {
+            "progress": dist[k] - dist[k + 1],
+            "success": float(info["is_success"]),
+            "collision": float(info["collision"]),
+            "time": dt,
+            "obs": dt * (a[R["obstacle_dist"]] < p.safety_distance),
+            "vsm": math.hypot(b[R["vx"]] - vx, b[R["vy"]] - vy) / dt,
+            "hsm": abs(b[R["omega"]] - w) / dt,
+            "osc": dt * osc,
+            "bwd": dt * (vx <= -p.osc_vel_x_threshold),
+            "iprot": dt * iprot,
+            "chc": abs(math.remainder(b[R["yaw"]] - a[R["yaw"]], 2 * math.pi)),
+            "psi": dt * (psi.max() if psi.size else 0.0),
+            "fsi": dt * (fsi.max() if fsi.size else 0.0),
+            "dir": dt * (dirv.max() if dirv.size else 0.0),
+        }
+        for term in TERMS:
+            assert info[f"reward_{term}"] == pytest.approx(
+                weights[term] * expected[term], rel=1e-9, abs=1e-12
+            ), (k, term)
+        for term in SRPB_TERMS:
+            assert info[f"srpb_step/{term}"] == pytest.approx(expected[term], rel=1e-9, abs=1e-12)
+        assert rewards[k] == pytest.approx(sum(info[f"reward_{t}"] for t in TERMS), abs=1e-12)
+    seen = {t for info in infos for t in TERMS if info[f"reward_{t}"] != 0.0}
+    # the trajectory exercised every term but those of the episode's end and the O-space
+    assert seen >= set(TERMS) - {"success", "collision", "fsi"}, set(TERMS) - seen
+    assert set(TASK_TERMS) < set(TERMS)
+
+
+# ------------------------------------------------------------------ observation
+def hand_tracks() -> Tracks:
+    xy = np.array([[3.0, 4.0], [1.0, 2.5], [9.0, 1.0]])
+    cov = np.array([[[0.04, 0.0], [0.0, 0.09]], [[0.01, 0.0], [0.0, 0.01]],
+                    [[0.25, 0.0], [0.0, 0.25]]])  # fmt: skip
+    n = xy.shape[0]
+    return Tracks(np.arange(n), xy, np.array([[0.0, 1.0], [0.5, 0.0], [0.0, 0.0]]),
+                  np.zeros(n), cov, np.zeros(n), np.zeros(n), np.ones(n, bool),
+                  np.arange(n))  # fmt: skip
+
+
+def test_every_index_of_the_flat_observation():
+    cfg = ObservationConfig(lidar_bins=4, people=3)
+    builder = ObservationBuilder(cfg, n_beams=8, range_max=10.0, v_scale=0.5, vy_scale=0.3,
+                                 w_max=1.0)  # fmt: skip
+    pose = np.array([1.0, 2.0, math.pi / 2])  # facing +y: robot x = world y, robot y = -x
+    goal = np.array([1.0, 12.0, 0.0])
+    velocity = np.array([0.25, 0.0, -0.5])
+    scan = np.array([5.0, 2.0, 10.0, 10.0, 1.0, 3.0, 7.0, 0.5])
+    obs = builder.build(pose, goal, velocity, scan, hand_tracks())
+    assert obs.shape == (8 + 4 + 3 * 7,) and obs.dtype == np.float32
+    expected = [
+        10.0 / 20.0, 1.0, 0.0,  # distance / goal_scale, goal straight ahead
+        math.cos(-math.pi / 2), math.sin(-math.pi / 2),  # goal yaw 0, robot yaw pi/2
+        0.25 / 0.5, 0.0, -0.5 / 1.0,  # measured velocity
+        2.0 / 10.0, 10.0 / 10.0, 1.0 / 10.0, 0.5 / 10.0,  # lidar: shortest of 2 beams each
+        # nearest person (1, 2.5): relative world (0, 0.5) -> robot (0.5, 0); its velocity
+        # (0.5, 0) minus the robot's (0, 0.25) world -> (0.5, -0.25) -> robot (-0.25, -0.5)
+        0.5 / 8, 0.0, -0.25 / 2, -0.5 / 2, 0.1, 0.1, 1.0,
+        # next (3, 4): relative (2, 2) -> robot (2, -2); velocity (0, 0.75) -> (0.75, 0)
+        2.0 / 8, -2.0 / 8, 0.75 / 2, 0.0, 0.3, 0.2, 1.0,  # std along robot x = world y
+        # third (9, 1): relative (8, -1) -> robot (-1, -8); velocity (0, -0.25) -> (-0.25, 0)
+        -1.0 / 8, -1.0, -0.25 / 2, 0.0, 0.5, 0.5, 1.0,
+    ]  # fmt: skip
+    np.testing.assert_allclose(obs, np.array(expected, np.float32), atol=1e-6)
+    dict_builder = ObservationBuilder(ObservationConfig(type="dict", lidar_bins=4, people=3),
+                                      8, 10.0, 0.5, 0.3, 1.0)  # fmt: skip
+    parts = dict_builder.build(pose, goal, velocity, scan, hand_tracks())
+    people = np.column_stack([parts["people"], parts["people_mask"]]).ravel()
+    flat = np.concatenate([parts["goal"], parts["velocity"], parts["lidar"], people])
+    assert np.array_equal(flat, obs)
+    assert dict_builder.space.contains(parts) and builder.space.contains(obs)
+
+
+def test_empty_people_slots_are_zero_and_values_clip():
+    builder = ObservationBuilder(ObservationConfig(lidar_bins=2, people=2), 4, 10.0, 0.5, 0.3,
+                                 1.0)  # fmt: skip
+    tracks = hand_tracks()._replace(xy=np.array([[40.0, 2.0]]), velocity=np.zeros((1, 2)),
+                                    covariance=np.eye(2)[None] * 9.0, ids=np.zeros(1))  # fmt: skip
+    obs = builder.build(np.zeros(3), np.array([100.0, 0.0, 0.0]), np.array([9.0, 0, 0]),
+                        np.full(4, 10.0), tracks)  # fmt: skip
+    assert obs[0] == 1.0 and obs[5] == 1.0  # clipped distance and speed
+    # relative x, y; relative velocity (-9, 0) clipped; std 3 m clipped; present
+    assert obs[8 + 2 : 8 + 2 + 7].tolist() == [1.0, 0.25, -1.0, 0.0, 1.0, 1.0, 1.0]
+    assert obs[8 + 2 + 7 :].tolist() == [0.0] * 7
+
+
+# ------------------------------------------------------------------ robot settings
+def test_robot_settings_drive_the_metric_parameters():
+    big = RobotConfig(radius=0.45, v_max=0.8)
+    settings = MetricSettings.build(None, big, goal_tolerance=0.3)
+    assert settings.params.robot_circumradius == 0.45
+    assert settings.params.robot_max_speed == 0.8
+    assert settings.params.goal_tolerance_xy == 0.3
+    explicit = MetricSettings.build({"params": {"robot_circumradius": 0.3}}, big, 0.3)
+    assert explicit.params.robot_circumradius == 0.3  # set explicitly: wins
+    preset = MetricSettings.build({"preset": "srpb-code"}, RobotConfig(), 0.2)
+    assert preset.params.robot_max_speed == 0.5 and preset.params.person_fov > 3.31
+    holonomic = RobotConfig(kinematics="holonomic")
+    assert robot_max_speed(holonomic) == pytest.approx(math.hypot(0.5, 0.3))
+
+
+@pytest.mark.parametrize(
+    ("metrics", "key"),
+    [
+        ("paper", "metrics"),
+        ({"semantic": "paper"}, "metrics.semantic"),
+        ({"semantics": "other"}, "metrics.semantics"),
+        ({"params": [1, 2]}, "metrics.params"),
+        ({"params": {"safety": 1.0}}, "metrics"),
+    ],
+)
+def test_metric_settings_errors_name_the_key(metrics, key):
+    with pytest.raises(ValueError, match=f"^{key}"):
+        gym.make("SRPB-Corridor-v0", metrics=metrics)
+
+
+def test_a_bigger_robot_is_bigger_everywhere():
+    env = gym.make("SRPB-Corridor-v0", robot={"radius": 0.45}, max_episode_steps=40)
+    base = env.unwrapped
+    assert base.params.robot_circumradius == 0.45
+    assert base.sim.robot_config.radius == 0.45
+    for seed in range(5):
+        env.reset(seed=seed)
+        x, y, _ = base.sim.world.robot_pose[0]
+        walls = base.sim.walls
+        assert _distance_to_walls(x, y, walls) >= 0.45  # placed for its size
+    # the metric's circumradius (m_dir's distance scale) is the robot's
+    small = gym.make("SRPB-Crowd-v0", max_episode_steps=80)
+    large = gym.make("SRPB-Crowd-v0", max_episode_steps=80, metrics={
+        "params": {"robot_circumradius": 0.45}})  # fmt: skip
+    forward = lambda k: np.array([0.6, 0.0], np.float32)  # noqa: E731
+    info_s = drive(small, 4, forward)[0]
+    info_l = drive(large, 4, forward)[0]
+    assert info_l["srpb_params"]["robot_circumradius"] == 0.45
+    assert info_l["srpb/m_psi"] == info_s["srpb/m_psi"]  # the same episode...
+    assert info_l["srpb/m_dir"] > info_s["srpb/m_dir"] > 0.0  # ...scored for a bigger robot
+
+
+def test_a_bigger_robot_collides_sooner():
+    def steps_to_wall(radius: float) -> int:
+        env = gym.make("SRPB-Corridor-v0", robot={"radius": radius}, max_episode_steps=200)
+        env.reset(seed=0, options={"people": False, "start": (2.0, 1.1, math.pi / 2)})
+        for k in range(200):
+            *_, info = env.step(np.array([1.0, 0.0], np.float32))
+            if info["collision"]:
+                return k
+        raise AssertionError("no collision")
+
+    assert steps_to_wall(0.45) < steps_to_wall(0.275)
+
+
+def _distance_to_walls(x: float, y: float, walls: np.ndarray) -> float:
+    a, b = walls[:, :2], walls[:, 2:]
+    d = b - a
+    t = np.clip(((np.array([x, y]) - a) * d).sum(1) / np.maximum((d * d).sum(1), 1e-12), 0, 1)
+    closest = a + t[:, None] * d
+    return float(np.hypot(*(closest - [x, y]).T).min())
+
+
+def test_no_warnings_on_a_plain_episode():
+    env = gym.make("SRPB-Corridor-v0")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        drive(env, 0, lambda k: np.array([1.0, 0.0], np.float32))
