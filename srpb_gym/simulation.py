@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.config import from_spec
 from srpb_gym.metrics.record import EpisodeRecord, R
 from srpb_gym.perception.detector import DetectorConfig, PeopleDetector
@@ -271,7 +272,7 @@ class Simulation:
 
     def _robot_row(self, pose, r: int, goal) -> NDArray[np.float64]:
         v = self.velocity[r]
-        yaw = math.remainder(float(pose[2]), 2 * math.pi)
+        yaw = wrap_angle(float(pose[2]))
         return np.array(
             [
                 self.t,

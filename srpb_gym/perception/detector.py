@@ -20,8 +20,9 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.config import from_spec
-from srpb_gym.sim.geometry import segment_clear, wrap_angle
+from srpb_gym.sim.geometry import segment_clear
 
 __all__ = ["PRESETS", "Detections", "DetectorConfig", "PeopleDetector", "visible_people"]
 

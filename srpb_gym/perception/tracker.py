@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 from scipy.optimize import linear_sum_assignment
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.config import from_spec
 
 _MIN_VAR = 1e-6  # floor of the measurement variance [m^2], so that std 0 (exact) works
@@ -143,12 +144,6 @@ _C_TIMEOUT, _C_YAW_W, _C_HEADING, _C_HITS = 5, 6, 7, 8
 # Workspace rows: wt (per track) and wd (per detection).
 _DEG, _ROW = 0, 1
 _ASSIGN, _DEGC, _COL = 0, 1, 2
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _wrap(a: float) -> float:
-    """``a`` mapped to (-pi, pi]."""
-    return a - 2.0 * math.pi * math.ceil((a - math.pi) / (2.0 * math.pi))
 
 
 @njit(cache=True, error_model="numpy")
@@ -276,7 +271,8 @@ def _update_and_spawn(x, P, f, iv, matched, det_xy, det_yaw, det_std, cfg, cnt, 
         t = wd[_ASSIGN, d]
         if t >= 0:
             _update(x[t], P[t], det_xy[d, 0], det_xy[d, 1], det_std[d], scratch)
-            f[_YAW, t] = _wrap(f[_YAW, t] + cfg[_C_YAW_W] * _wrap(det_yaw[d] - f[_YAW, t]))
+            turn = wrap_angle(det_yaw[d] - f[_YAW, t])
+            f[_YAW, t] = wrap_angle(f[_YAW, t] + cfg[_C_YAW_W] * turn)
         elif n == x.shape[0]:
             refused += 1
             continue
@@ -331,7 +327,7 @@ def _start(t, x, P, f, iv, z, yaw, std, cfg, cnt):
     P[:, :] = 0.0
     P[0, 0] = P[1, 1] = max(std * std, _MIN_VAR)
     P[2, 2] = P[3, 3] = cfg[_C_VEL_VAR]
-    f[_YAW, t] = _wrap(yaw)
+    f[_YAW, t] = wrap_angle(yaw)
     f[_AGE, t] = 0.0
     iv[_ID, t] = cnt[_NEXT_ID]
     iv[_HITS, t] = 0

@@ -21,7 +21,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym import config as _config
-from srpb_gym.metrics.kernels import wrap_angle
+from srpb_gym.angles import wrap_angle
 from srpb_gym.sim.layout import FormationLayout, PersonLayout
 
 WAITING, WALKING, STOPPED, STANDING = 0, 1, 2, 3  # values of Crowd.state

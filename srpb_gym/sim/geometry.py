@@ -25,7 +25,7 @@ import math
 import numpy as np
 from numba import njit
 
-from srpb_gym.metrics.kernels import wrap_angle
+from srpb_gym.angles import wrap_angle
 
 __all__ = [
     "line_of_sight",
@@ -36,7 +36,6 @@ __all__ = [
     "raycast",
     "raycast_beams",
     "segment_clear",
-    "wrap_angle",
 ]
 
 PI = math.pi

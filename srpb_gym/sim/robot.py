@@ -17,8 +17,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.config import from_spec
-from srpb_gym.metrics.kernels import wrap_angle
 
 KINEMATICS = ("diff", "holonomic")
 
