@@ -5,7 +5,12 @@
 >>> scenario = load_scenario("corridor")  # or a path to a YAML file
 >>> layout = sample(scenario, np.random.default_rng(0))  # an EpisodeLayout
 
+Scenarios are checked and sampled for a robot of a given radius (default
+``DEFAULT_ROBOT_RADIUS``, 0.275 m): ``load_scenario("doorway", robot_radius=0.45)``.
 The file format is documented in ``envs/README.md``.
+
+Modules, each importing only those before it: ``space`` (geometry, free-space grid),
+``schema`` (dataclasses), ``sampler``, ``validate``, ``loader``.
 """
 
 from __future__ import annotations
@@ -13,9 +18,9 @@ from __future__ import annotations
 from srpb_gym.scenarios.loader import list_scenarios, load_scenario, parse_scenario
 from srpb_gym.scenarios.sampler import sample
 from srpb_gym.scenarios.schema import (
+    DEFAULT_ROBOT_RADIUS,
     ROBOT_RADIUS,
     FormationSpec,
-    Place,
     PoseSpec,
     RobotSpec,
     Scenario,
@@ -24,10 +29,11 @@ from srpb_gym.scenarios.schema import (
     WalkerParams,
     YawSpec,
 )  # fmt: skip
-from srpb_gym.scenarios.validate import FreeSpace, validate
+from srpb_gym.scenarios.space import FreeSpace, Place
+from srpb_gym.scenarios.validate import validate
 
 __all__ = [
-    "ROBOT_RADIUS", "FormationSpec", "FreeSpace", "Place", "PoseSpec", "RobotSpec", "Scenario",
-    "SensorSpecs", "WalkerEntry", "WalkerParams", "YawSpec", "list_scenarios", "load_scenario",
-    "parse_scenario", "sample", "validate",
+    "DEFAULT_ROBOT_RADIUS", "ROBOT_RADIUS", "FormationSpec", "FreeSpace", "Place", "PoseSpec",
+    "RobotSpec", "Scenario", "SensorSpecs", "WalkerEntry", "WalkerParams", "YawSpec",
+    "list_scenarios", "load_scenario", "parse_scenario", "sample", "validate",
 ]  # fmt: skip

@@ -20,6 +20,7 @@ import yaml
 from srpb_gym.errors import InputError
 from srpb_gym.resources import scenarios_dir
 from srpb_gym.scenarios.schema import (
+    DEFAULT_ROBOT_RADIUS,
     MAX_FORMATION_MEMBERS,
     MAX_GROUP_SIZE,
     MIN_FORMATION_MEMBERS,
@@ -35,9 +36,11 @@ from srpb_gym.scenarios.schema import (
     WalkerEntry,
     WalkerParams,
     YawSpec,
+    checked_robot_radius,
     located_error,
 )
-from srpb_gym.scenarios.validate import polygon_area, rectangle_corners, ring_segments, validate
+from srpb_gym.scenarios.space import polygon_area, rectangle_corners, ring_segments
+from srpb_gym.scenarios.validate import validate
 
 SUFFIXES = (".yaml", ".yml")
 TOP_KEYS = (
@@ -58,14 +61,9 @@ FORMATION_KEYS = (
 # --- finding files ---------------------------------------------------------------------
 
 
-def _packaged_dir() -> Any:
-    """The folder of packaged scenario files (installed package data, else ``envs/``)."""
-    return scenarios_dir()
-
-
 def list_scenarios() -> list[str]:
     """The names of the packaged scenarios, sorted."""
-    folder = _packaged_dir()
+    folder = scenarios_dir()
     if not folder.is_dir():
         return []
     names = (entry.name for entry in folder.iterdir() if entry.is_file())
@@ -80,7 +78,7 @@ def _resolve(path_or_name: str | os.PathLike[str]) -> Any:
         return Path(text)
     if os.sep in text or "/" in text:
         raise InputError("no such scenario file", text)
-    folder = _packaged_dir()
+    folder = scenarios_dir()
     stem = text.rsplit(".", 1)[0] if text.endswith(SUFFIXES) else text
     for suffix in SUFFIXES:
         if (folder / f"{stem}{suffix}").is_file():
@@ -89,12 +87,14 @@ def _resolve(path_or_name: str | os.PathLike[str]) -> Any:
     raise InputError(f"unknown scenario {text!r}; packaged scenarios: {names}")
 
 
-def load_scenario(path_or_name: str | os.PathLike[str]) -> Scenario:
-    """Load, check and prepare a scenario from a YAML file or a packaged scenario name."""
+def load_scenario(
+    path_or_name: str | os.PathLike[str], robot_radius: float = DEFAULT_ROBOT_RADIUS
+) -> Scenario:
+    """Load, check and prepare a scenario (a YAML file or a packaged scenario's name) for a
+    robot of ``robot_radius`` [m], which ``scenario.robot_radius`` keeps for sampling."""
     source = _resolve(path_or_name)
     text = source.read_text(encoding="utf-8")
-    scenario = parse_scenario(text, str(source), source.name.rsplit(".", 1)[0])
-    return validate(scenario)
+    return validate(parse_scenario(text, str(source), robot_radius=robot_radius))
 
 
 # --- YAML with line numbers --------------------------------------------------------------
@@ -281,11 +281,16 @@ class _Reader:
 # --- sections ------------------------------------------------------------------------------
 
 
-def parse_scenario(text: str, file: str | None = None, default_name: str | None = None) -> Scenario:
-    """A :class:`Scenario` from YAML text (types and ranges checked, geometry not yet).
+def parse_scenario(
+    text: str, file: str | None = None, default_name: str | None = None,
+    *, robot_radius: float = DEFAULT_ROBOT_RADIUS,
+) -> Scenario:  # fmt: skip
+    """A :class:`Scenario` for a robot of ``robot_radius`` [m] from YAML text (types and
+    ranges checked, geometry not yet: see :func:`~srpb_gym.scenarios.validate.validate`).
 
     ``default_name`` (default: the file's name without suffix) names a file without ``name``.
     """
+    robot_radius = checked_robot_radius(robot_radius, file)
     if default_name is None:
         default_name = Path(file).name.rsplit(".", 1)[0] if file else "scenario"
     data, lines = read_yaml(text, file)
@@ -312,6 +317,7 @@ def parse_scenario(text: str, file: str | None = None, default_name: str | None 
         people=tuple(_people(r, top.get("people", []))),
         formations=tuple(_formations(r, top.get("formations", []))),
         sensors=_sensors(r, top.get("sensors", {})),
+        robot_radius=robot_radius,
         source=file,
         lines=lines,
     )

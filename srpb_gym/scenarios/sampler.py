@@ -2,9 +2,9 @@
 
 ``sample(scenario, rng)`` draws, in this order and only from ``rng``:
 
-1. the robot start (``GAP`` clear of walls, in a component that reaches the goal place)
-   and goal (likewise clear, in the start's component, farther than ``goal_tolerance``),
-   then their yaws;
+1. the robot start (its circle of ``scenario.robot_radius`` ``GAP`` clear of walls, in a
+   component that reaches the goal place) and goal (likewise clear, in the start's
+   component, farther than ``goal_tolerance``), then their yaws;
 2. each F-formation: centre, member count, circle radius, orientation and body radius;
    every member must keep ``GAP`` from walls and the formation's circle (member circle
    plus a body radius) must not overlap the robot start or goal or an earlier formation;
@@ -24,16 +24,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from srpb_gym.scenarios.schema import (
-    PLACEMENT_GAP,
-    ROBOT_RADIUS,
-    Point,
-    Range,
-    Scenario,
-    WalkerEntry,
-    YawSpec,
-)
-from srpb_gym.scenarios.validate import FreeSpace, free_space
+from srpb_gym.angles import wrap_angle
+from srpb_gym.scenarios.schema import PLACEMENT_GAP, Range, Scenario, WalkerEntry, YawSpec
+from srpb_gym.scenarios.space import FreeSpace, Point, free_space
 from srpb_gym.sim.layout import EpisodeLayout, FormationLayout, PersonLayout, RobotLayout
 
 MAX_TRIES = 200  # random placements per robot pose, formation or walking unit
@@ -81,16 +74,17 @@ class _Context:
 
 
 def sample(scenario: Scenario, rng: np.random.Generator) -> EpisodeLayout:
-    """One episode layout drawn from ``scenario`` with ``rng`` (see the module docstring).
+    """One episode layout drawn from ``scenario`` with ``rng`` (see the module docstring),
+    for a robot of ``scenario.robot_radius`` [m].
 
     ``layout.walls`` is the scenario's read-only wall array (shared, not copied). A scenario
-    that did not go through :func:`~srpb_gym.scenarios.validate.validate` has its free space
-    computed on every call (slow); load scenarios with ``load_scenario``.
+    that did not go through :func:`~srpb_gym.scenarios.validate.validate` for its robot
+    radius has its free space computed on every call (slow); load scenarios with
+    ``load_scenario``.
     """
-    space = scenario.free_space if scenario.free_space is not None else free_space(scenario)
-    ctx = _Context(scenario, space, rng)
+    ctx = _Context(scenario, free_space_of(scenario), rng)
     robot = _robot(ctx)
-    ctx.discs.add(robot.start[0], robot.start[1], ROBOT_RADIUS + ROBOT_GAP - GAP)
+    ctx.discs.add(robot.start[0], robot.start[1], scenario.robot_radius + ROBOT_GAP - GAP)
     formations = _formations(ctx, robot.goal[:2])
     for entry in scenario.people:
         (_route_entry if entry.is_route else _spawn_entry)(ctx, entry)
@@ -106,12 +100,20 @@ def sample(scenario: Scenario, rng: np.random.Generator) -> EpisodeLayout:
     )
 
 
-def _wrap(angle: float) -> float:
-    return (angle + math.pi) % (2.0 * math.pi) - math.pi
+def free_space_of(scenario: Scenario) -> FreeSpace:
+    """The free space of a scenario's world for its robot radius: the one attached by
+    :func:`~srpb_gym.scenarios.validate.validate` when it is for that radius, else computed
+    now (a 5 cm grid, tens of milliseconds)."""
+    space = scenario.free_space
+    if space is not None and space.robot_radius == scenario.robot_radius:
+        return space
+    robot = scenario.robot
+    return free_space(scenario.bounds, scenario.walls, scenario.obstacles,
+                      scenario.robot_radius, robot.start.place, robot.goal.place)  # fmt: skip
 
 
 def _yaw(ctx: _Context, spec: YawSpec, towards: float) -> float:
-    return towards if spec.towards_goal else _wrap(ctx.uniform(spec.range))
+    return towards if spec.towards_goal else float(wrap_angle(ctx.uniform(spec.range)))
 
 
 def _robot(ctx: _Context) -> RobotLayout:
@@ -135,19 +137,19 @@ def _draw_robot_point(ctx: _Context, name: str, accept: Callable[[float, float],
     place = getattr(ctx.scenario.robot, name).place
     for _ in range(MAX_TRIES if not place.is_point else 1):
         x, y = place.draw(ctx.rng)
-        if ctx.space.is_clear(x, y, ROBOT_RADIUS + GAP) and accept(x, y):
+        if ctx.space.is_clear(x, y, ctx.scenario.robot_radius + GAP) and accept(x, y):
             return (x, y)
     raise ctx.scenario.error(
         f"robot.{name}.position",
-        f"could not draw a robot {name} clear of walls and reachable "
-        f"({MAX_TRIES if not place.is_point else 1} tries)",
+        f"could not draw a {name} for a robot of radius {ctx.scenario.robot_radius:g} m clear "
+        f"of walls and reachable ({MAX_TRIES if not place.is_point else 1} tries)",
     )
 
 
 def _formations(ctx: _Context, goal: Point) -> tuple[FormationLayout, ...]:
     out = []
     goal_disc = _Discs()
-    goal_disc.add(goal[0], goal[1], ROBOT_RADIUS)
+    goal_disc.add(goal[0], goal[1], ctx.scenario.robot_radius)
     for spec in ctx.scenario.formations:
         for _ in range(MAX_TRIES):
             cx, cy = spec.center.draw(ctx.rng)

@@ -9,67 +9,29 @@ a range ``(low, high)`` is drawn uniformly, a fixed value is stored as ``(v, v)`
 
 from __future__ import annotations
 
+import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
+from srpb_gym.scenarios.space import Bounds, FreeSpace, Place, Point
 
-if TYPE_CHECKING:
-    from srpb_gym.scenarios.validate import FreeSpace
-
-ROBOT_RADIUS = 0.275  # m, circumradius of the differential-drive robot
+# m, circumradius of the default robot (``srpb_gym.sim.robot.RobotConfig().radius``); a
+# scenario is validated and sampled for the radius given to ``load_scenario``
+DEFAULT_ROBOT_RADIUS = 0.275
+ROBOT_RADIUS = DEFAULT_ROBOT_RADIUS  # the former name
 PLACEMENT_GAP = 0.05  # m, free gap kept around every body placed at the start of an episode
 MIN_FORMATION_MEMBERS = 2
 MAX_FORMATION_MEMBERS = 6
 MAX_GROUP_SIZE = 4  # walking groups of more than four people split up (Moussaid et al.)
 
-Point = tuple[float, float]
 Range = tuple[float, float]
 IntRange = tuple[int, int]
-
-
-@dataclass(frozen=True)
-class Place:
-    """A point (``xmin == xmax`` and ``ymin == ymax``) or an axis-aligned rectangle [m]."""
-
-    xmin: float
-    ymin: float
-    xmax: float
-    ymax: float
-
-    @classmethod
-    def point(cls, x: float, y: float) -> Place:
-        """The place holding the single point (x, y) [m]."""
-        return cls(x, y, x, y)
-
-    @property
-    def is_point(self) -> bool:
-        """True when the place has no extent."""
-        return self.xmin == self.xmax and self.ymin == self.ymax
-
-    @property
-    def center(self) -> Point:
-        """The centre (x, y) [m]."""
-        return (0.5 * (self.xmin + self.xmax), 0.5 * (self.ymin + self.ymax))
-
-    def corners(self) -> tuple[Point, ...]:
-        """The four corners (one point for a point place) [m]."""
-        if self.is_point:
-            return ((self.xmin, self.ymin),)
-        return (
-            (self.xmin, self.ymin), (self.xmax, self.ymin),
-            (self.xmax, self.ymax), (self.xmin, self.ymax),
-        )  # fmt: skip
-
-    def draw(self, rng: np.random.Generator) -> Point:
-        """A point drawn uniformly from the place [m]."""
-        if self.is_point:
-            return (self.xmin, self.ymin)
-        return (float(rng.uniform(self.xmin, self.xmax)), float(rng.uniform(self.ymin, self.ymax)))
 
 
 @dataclass(frozen=True)
@@ -144,11 +106,6 @@ class WalkerEntry:
         """True for a fixed-route entry, False for a spawn entry."""
         return bool(self.route)
 
-    @property
-    def max_people(self) -> int:
-        """The largest number of people this entry can produce."""
-        return self.count[1] * self.group_size[1]
-
 
 @dataclass(frozen=True)
 class FormationSpec:
@@ -194,37 +151,27 @@ class Scenario:
     ``walls``: (S, 4) read-only array of wall segments x0, y0, x1, y1 [m], including the
     edges of the obstacles and, with ``enclose``, of the bounds. ``obstacles``: the solid
     polygons (each an (N, 2) array of vertices) whose edges are in ``walls``.
+    ``robot_radius``: the radius [m] of the robot the scenario is validated and sampled for
+    (the robot's clearance from walls, the reachability of its goal).
     ``source`` and ``lines`` locate keys in the file for error messages;
-    ``free_space`` is precomputed by :func:`~srpb_gym.scenarios.validate.validate`.
+    ``free_space`` (for ``robot_radius``) is precomputed by
+    :func:`~srpb_gym.scenarios.validate.validate`.
     """
 
     name: str
     walls: NDArray[np.float64]
     robot: RobotSpec
-    bounds: tuple[float, float, float, float]
+    bounds: Bounds
     description: str = ""
     time_limit: float = 60.0  # s
     obstacles: tuple[NDArray[np.float64], ...] = ()
     people: tuple[WalkerEntry, ...] = ()
     formations: tuple[FormationSpec, ...] = ()
     sensors: SensorSpecs = field(default_factory=SensorSpecs)
+    robot_radius: float = DEFAULT_ROBOT_RADIUS  # m
     source: str | None = None
     lines: Mapping[str, int] = field(default_factory=dict, repr=False)
     free_space: FreeSpace | None = field(default=None, repr=False)
-
-    @property
-    def max_people(self) -> int:
-        """The largest number of walking people an episode can have."""
-        return sum(entry.max_people for entry in self.people)
-
-    @property
-    def max_formation_members(self) -> int:
-        """The largest number of people standing in F-formations in an episode."""
-        return sum(f.members[1] for f in self.formations)
-
-    def line_of(self, key: str) -> int | None:
-        """The 1-based line of ``key`` (or of its nearest enclosing key) in the file."""
-        return line_of(self.lines, key)
 
     def error(self, key: str, message: str) -> InputError:
         """An :class:`InputError` about ``key`` located in the scenario file."""
@@ -249,3 +196,12 @@ def located_error(
     if line is None:
         return InputError(message, source, key=key or None)
     return InputError(f"{key}: {message}" if key else message, source, line=line, key=key or None)
+
+
+def checked_robot_radius(radius: Any, source: str | None = None) -> float:
+    """``radius`` [m] as a float, or an :class:`InputError` (key ``robot_radius``) unless it
+    is a finite number > 0."""
+    number = isinstance(radius, numbers.Real) and not isinstance(radius, bool)
+    if not (number and math.isfinite(radius) and radius > 0):
+        raise InputError(f"must be a number > 0 [m], got {radius!r}", source, key="robot_radius")
+    return float(radius)

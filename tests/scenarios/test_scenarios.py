@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from srpb_gym.errors import InputError
+from srpb_gym.resources import scenarios_dir
 from srpb_gym.scenarios import (
     ROBOT_RADIUS,
     list_scenarios,
@@ -23,9 +24,8 @@ from srpb_gym.scenarios import (
     sample,
     validate,
 )  # fmt: skip
-from srpb_gym.scenarios.loader import _packaged_dir
 from srpb_gym.scenarios.schema import PLACEMENT_GAP
-from srpb_gym.scenarios.validate import inside_polygon, point_distance
+from srpb_gym.scenarios.space import inside_polygon, point_distance
 
 NAMES = ["corridor", "crossing", "crowd", "doorway", "fformation"]
 README = Path(__file__).resolve().parents[2] / "envs" / "README.md"
@@ -42,7 +42,7 @@ def _clearance(scenario, x: float, y: float) -> float:
 
 
 def _free_mask(scenario, res: float):
-    """Cells whose centres keep more than the robot radius from every wall (brute force)."""
+    """Cells whose centres keep more than the robot's radius from every wall (brute force)."""
     xmin, ymin, xmax, ymax = scenario.bounds
     cols, rows = math.ceil((xmax - xmin) / res), math.ceil((ymax - ymin) / res)
     X, Y = np.meshgrid(xmin + (np.arange(cols) + 0.5) * res, ymin + (np.arange(rows) + 0.5) * res)
@@ -50,10 +50,10 @@ def _free_mask(scenario, res: float):
     a, b = scenario.walls[None, :, :2], scenario.walls[None, :, 2:]
     t = np.clip(np.sum((P - a) * (b - a), -1) / np.maximum(np.sum((b - a) ** 2, -1), 1e-12), 0, 1)
     dist = np.linalg.norm(P - (a + t[..., None] * (b - a)), axis=-1).min(axis=1).reshape(X.shape)
-    free = dist > ROBOT_RADIUS
+    free = dist > scenario.robot_radius
     for poly in scenario.obstacles:
         free &= ~inside_polygon(X, Y, poly)
-    return free & (xmin + ROBOT_RADIUS < X) & (xmax - ROBOT_RADIUS > X)
+    return free & (xmin + scenario.robot_radius < X) & (xmax - scenario.robot_radius > X)
 
 
 def _bfs_reachable(scenario, free, a, b, res: float = 0.05) -> bool:
@@ -97,23 +97,23 @@ def test_list_scenarios_lists_the_five():
 
 
 def test_packaged_files_are_found():
-    folder = _packaged_dir()
+    folder = scenarios_dir()
     assert all((folder / f"{name}.yaml").is_file() for name in NAMES)
     if importlib.util.find_spec("srpb_gym.envs_data") is not None:  # installed package data
         assert (importlib.resources.files("srpb_gym.envs_data") / "corridor.yaml").is_file()
 
 
-@pytest.mark.parametrize("name", NAMES)
-def test_scenario_samples_valid_layouts(name):
-    scenario = load_scenario(name)
+@pytest.mark.parametrize(("name", "radius"), [(n, r) for n in NAMES for r in (ROBOT_RADIUS, 0.45)])
+def test_scenario_samples_valid_layouts(name, radius):
+    scenario = load_scenario(name, robot_radius=radius)
     assert scenario.name == name and scenario.description
-    assert scenario.free_space is not None
+    assert scenario.robot_radius == radius and scenario.free_space.robot_radius == radius
     free = _free_mask(scenario, 0.05)
     for seed in range(20):
         layout = sample(scenario, np.random.default_rng(seed))
         (robot,) = layout.robots
         for x, y, _ in (robot.start, robot.goal):
-            assert _clearance(scenario, x, y) >= ROBOT_RADIUS + PLACEMENT_GAP
+            assert _clearance(scenario, x, y) >= radius + PLACEMENT_GAP
         assert math.dist(robot.start[:2], robot.goal[:2]) > layout.goal_tolerance
         assert _bfs_reachable(scenario, free, robot.start, robot.goal)
         space = scenario.free_space
@@ -124,7 +124,7 @@ def test_scenario_samples_valid_layouts(name):
             bodies += [(m, f.radius) for m in f.members]
         for p, r in bodies:
             assert _clearance(scenario, *p) >= r + PLACEMENT_GAP
-            assert math.dist(p, robot.start[:2]) >= r + ROBOT_RADIUS
+            assert math.dist(p, robot.start[:2]) >= r + radius
         for k, (p, r) in enumerate(bodies):
             for q, s in bodies[k + 1 :]:
                 assert math.dist(p, q) >= r + s
@@ -340,7 +340,7 @@ BAD_CASES = {
         {"  - [5.0, 0.0, 5.0, 2.0]": "  - [5.0, 0.0, 5.0, 6.0]"},
         12,
         "robot.goal.position",
-        "unreachable",
+        "not reachable from the start for a robot of radius 0.275 m",
     ),
     "too few members": (
         {"    members: 2": "    members: 1"},
