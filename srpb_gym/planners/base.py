@@ -16,6 +16,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.perception.tracker import Tracks
 from srpb_gym.sim.robot import RobotConfig
 
@@ -77,4 +78,4 @@ def command_to_action(
 def heading_error(knowledge: Knowledge, x: float, y: float) -> float:
     """Angle from the robot's heading to the point (x, y), in (-pi, pi]."""
     px, py, yaw = knowledge.pose
-    return math.remainder(math.atan2(y - py, x - px) - yaw, 2 * math.pi)
+    return float(wrap_angle(math.atan2(y - py, x - px) - yaw))

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.planners.base import Knowledge, Planner, command_to_action
 from srpb_gym.planners.global_planner import GlobalPlanner
 
@@ -115,7 +116,7 @@ def rollout(
 def goal_turn(knowledge: Knowledge, gain: float = 2.0) -> tuple[float, float]:
     """(v, omega) that turns in place to the goal heading, braking in time (no overshoot)."""
     robot = knowledge.robot
-    err = math.remainder(float(knowledge.goal[2] - knowledge.pose[2]), 2 * math.pi)
+    err = float(wrap_angle(float(knowledge.goal[2] - knowledge.pose[2])))
     w = min(robot.w_max, gain * abs(err), 0.9 * math.sqrt(2.0 * robot.acc_ang * abs(err)))
     return 0.0, math.copysign(max(w, 0.15), err)
 
@@ -206,7 +207,7 @@ class Recovery:
                 return self.backup_speed, 0.0
             self.phase, self.until = "rotate", t + self.rotate_time
         if self.phase == "rotate":
-            err = math.remainder(math.atan2(target[1] - y, target[0] - x) - yaw, 2 * math.pi)
+            err = float(wrap_angle(math.atan2(target[1] - y, target[0] - x) - yaw))
             if t < self.until and abs(err) > 0.15:
                 robot = knowledge.robot
                 w = min(robot.w_max, 2.0 * abs(err), math.sqrt(2 * robot.acc_ang * abs(err)))
@@ -411,7 +412,7 @@ class DWA(Planner):
         look_idx = np.minimum(np.searchsorted(s_local, progress + self.lookahead), len(local) - 1)
         look = local[look_idx]
         to_look = np.arctan2(look[:, 1] - end[:, 1], look[:, 0] - end[:, 0])
-        head = np.abs(np.remainder(to_look - end[:, 2] + np.pi, 2 * np.pi) - np.pi)
+        head = np.abs(wrap_angle(to_look - end[:, 2]))
         near = np.hypot(look[:, 0] - end[:, 0], look[:, 1] - end[:, 1]) < 0.3
         head = np.where(near, 0.0, head)
         cost = self.w_path * path_d - self.w_progress * progress + self.w_heading * head

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.planners.base import Knowledge, Planner, command_to_action, heading_error
 
 
@@ -31,7 +32,7 @@ class GoToGoal(Planner):
         if dist > arrive:
             err = heading_error(knowledge, gx, gy)
         else:
-            err = math.remainder(gyaw - knowledge.pose[2], 2 * math.pi)
+            err = float(wrap_angle(gyaw - knowledge.pose[2]))
         omega = float(np.clip(self.k_turn * err, -robot.w_max, robot.w_max))
         speed = 0.0
         if dist > arrive:

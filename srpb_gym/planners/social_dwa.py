@@ -25,9 +25,10 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.metrics import kernels
 from srpb_gym.metrics.episode import group_ellipses
-from srpb_gym.metrics.kernels import gauss, wrap_angle
+from srpb_gym.metrics.kernels import gauss
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.perception.tracker import Tracks
 from srpb_gym.planners.base import Knowledge

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.angles import wrap_angle
 from srpb_gym.planners.base import Knowledge, Planner, command_to_action
 from srpb_gym.planners.dwa import Recovery, goal_turn, people_array, rollout, scan_points
 from srpb_gym.planners.global_planner import GlobalPlanner
@@ -173,7 +174,7 @@ class SocialForcePlanner(Planner):
         """Differential-drive command towards ``v_des``: the fastest safe of a few speeds."""
         robot, gp = k.robot, self.planner
         yaw = float(k.pose[2])
-        err = math.remainder(math.atan2(v_des[1], v_des[0]) - yaw, 2 * math.pi)
+        err = float(wrap_angle(math.atan2(v_des[1], v_des[0]) - yaw))
         w = float(np.clip(self.k_turn * err, -robot.w_max, robot.w_max))
         v = float(min(np.hypot(*v_des), robot.v_max)) * max(math.cos(err), 0.0)
         if abs(err) > 0.5 * math.pi:
