@@ -23,8 +23,9 @@ from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
 from srpb_gym.planners.base import Knowledge, Planner, command_to_action
-from srpb_gym.planners.dwa import Recovery, goal_turn, people_array, rollout, scan_points
 from srpb_gym.planners.global_planner import GlobalPlanner
+from srpb_gym.planners.recovery import Recovery, goal_turn
+from srpb_gym.planners.rollout import people_array, rollout, scan_points
 
 
 class SocialForcePlanner(Planner):

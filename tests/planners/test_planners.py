@@ -22,7 +22,10 @@ from srpb_gym.planners import (
     SocialForcePlanner,
     dwa,
     global_planner,
+    grid,
     make_planner,
+    recovery,
+    rollout,
     social_dwa,
     social_force,
 )
@@ -142,7 +145,9 @@ def test_acts_on_knowledge_only(name: str) -> None:
     assert np.array_equal(a.act(obs, knowledge), b.act(None, knowledge))
 
 
-@pytest.mark.parametrize("module", [dwa, global_planner, social_dwa, social_force])
+@pytest.mark.parametrize(
+    "module", [dwa, global_planner, grid, recovery, rollout, social_dwa, social_force]
+)
 def test_no_ground_truth_access(module) -> None:
     source = inspect.getsource(module)
     forbidden = r"\bunwrapped\b|gt_record|(?<!srpb_gym)\.sim\b|\.crowd\b|\.world\b|people_xy"
