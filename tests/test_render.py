@@ -1,4 +1,4 @@
-"""The pygame renderer: off-screen frames, where things are drawn, the window, the extra."""
+"""The pygame renderer: off-screen frames, where things are drawn, the window, the import."""
 
 from __future__ import annotations
 
@@ -10,16 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from srpb_gym.metrics import kernels
-from srpb_gym.render import (
-    INSTALL_HINT,
-    OTHER_ROBOT,
-    ROBOT_COLOR,
-    Renderer,
-    covariance_ellipses,
-    formation_ellipses,
-    personal_space_contours,
-)
+from srpb_gym.render import INSTALL_HINT, ROBOT_COLOR, Renderer, robot_colors
 from srpb_gym.scenarios import load_scenario, sample
 from srpb_gym.sim.layout import EpisodeLayout, RobotLayout
 from srpb_gym.simulation import Simulation
@@ -41,6 +32,17 @@ def _simulation(name: str, steps: int = 0, seed: int = 0) -> Simulation:
     sim.reset(sample(scenario, np.random.default_rng(seed)), np.random.default_rng(seed))
     for _ in range(steps):
         sim.step([[0.4, 0.0, 0.1]], 0.0)
+    return sim
+
+
+def _two_robots() -> Simulation:
+    walls = np.array([[0, 0, 8, 0], [8, 0, 8, 6], [8, 6, 0, 6], [0, 6, 0, 0]], dtype=float)
+    robots = (
+        RobotLayout((2.0, 2.0, 0.0), (6.0, 2.0, 0.0)),
+        RobotLayout((2.0, 4.0, 0.0), (6.0, 4.0, 0.0)),
+    )
+    sim = Simulation()
+    sim.reset(EpisodeLayout(walls, robots, bounds=(0, 0, 8, 6)), np.random.default_rng(0))
     return sim
 
 
@@ -80,6 +82,20 @@ def test_robot_drawn_where_it_is(headless, name):
     assert _pixel(later, renderer, x0, y0) != ROBOT_COLOR
 
 
+def test_frame_draws_the_scene(headless):
+    """The pixels at the scene's primitives have the primitives' colours."""
+    sim = _simulation("crowd", steps=5)
+    renderer = Renderer("rgb_array", W, H)
+    frame = renderer.render(sim)
+    scene = renderer.scene(sim)
+    cx, cy = scene.robots.body.center[0]
+    r = int(scene.robots.body.radius[0])
+    assert tuple(frame[cy, cx + r // 2]) == ROBOT_COLOR
+    assert tuple(frame[cy, cx + r + 3]) != ROBOT_COLOR  # no bigger than its radius
+    gx, gy = scene.robots.goals.center[0]
+    assert tuple(frame[gy, gx]) == robot_colors(0).goal  # the goal cross
+
+
 def test_y_up_and_equal_scale(headless):
     sim = _simulation("crowd")
     renderer = Renderer("rgb_array", W, H)
@@ -91,20 +107,30 @@ def test_y_up_and_equal_scale(headless):
     assert 0 <= ax < bx < W and 0 <= by < ay < H
 
 
-def test_chosen_robot_is_highlighted(headless):
-    walls = np.array([[0, 0, 8, 0], [8, 0, 8, 6], [8, 6, 0, 6], [0, 6, 0, 0]], dtype=float)
-    robots = (
-        RobotLayout((2.0, 2.0, 0.0), (6.0, 2.0, 0.0)),
-        RobotLayout((2.0, 4.0, 0.0), (6.0, 4.0, 0.0)),
-    )
-    sim = Simulation()
-    sim.reset(EpisodeLayout(walls, robots, bounds=(0, 0, 8, 6)), np.random.default_rng(0))
+def test_every_robot_in_its_colour_the_chosen_one_ringed(headless):
+    sim = _two_robots()
     renderer = Renderer("rgb_array", W, H)
-    frame = renderer.render(sim, robot=1)
-    assert _pixel(frame, renderer, 2.0, 4.0) == ROBOT_COLOR
-    assert _pixel(frame, renderer, 2.0, 2.0) == OTHER_ROBOT
+    ring = renderer.scene(sim).robots.body.radius[0] + 5
+    for chosen, other in ((1, 0), (0, 1)):
+        frame = renderer.render(sim, robot=chosen)
+        for i, y in ((0, 2.0), (1, 4.0)):
+            assert _pixel(frame, renderer, 2.0, y) == robot_colors(i).fill
+            assert _pixel(frame, renderer, 6.0, y) == robot_colors(i).goal  # goal cross
+        px, py = renderer.world_to_pixel(2.0, 2.0 + 2.0 * chosen)
+        assert tuple(frame[py - ring, px]) == robot_colors(chosen).edge
+        px, py = renderer.world_to_pixel(2.0, 2.0 + 2.0 * other)
+        assert tuple(frame[py - ring, px]) != robot_colors(other).edge
     with pytest.raises(IndexError):
         renderer.render(sim, robot=2)
+
+
+def test_goal_tolerance_as_given(headless):
+    sim = _two_robots()
+    renderer = Renderer("rgb_array", W, H)
+    small = renderer.render(sim, 0, goal_tolerance=0.2)
+    large = renderer.render(sim, 0, goal_tolerance=[0.6, 0.2])
+    px, py = renderer.world_to_pixel(6.0, 2.0 + 0.4)  # inside 0.6 m only
+    assert tuple(small[py, px]) != tuple(large[py, px]) == robot_colors(0).goal_fill
 
 
 def test_panel_values_are_drawn(headless):
@@ -119,17 +145,28 @@ def test_panel_values_are_drawn(headless):
     assert (changed[:, 1] > xmax_px).all()
 
 
+def test_plain_pygame_without_aacircle(headless, monkeypatch):
+    """pygame (not -ce) installs the same module without draw.aacircle: still draws."""
+    monkeypatch.delattr(headless.draw, "aacircle")
+    sim = _simulation("crowd", steps=3)
+    renderer = Renderer("rgb_array", W, H)
+    frame = renderer.render(sim, 0, {"m_psi": 1.0})
+    assert _pixel(frame, renderer, *sim.world.robot_pose[0, :2]) == ROBOT_COLOR
+
+
 def test_world_to_pixel_needs_a_frame(headless):
     with pytest.raises(RuntimeError, match="render"):
         Renderer("rgb_array").world_to_pixel(0.0, 0.0)
 
 
-def test_bad_mode():
+def test_bad_mode_and_size():
     with pytest.raises(ValueError, match="render_mode"):
         Renderer("ansi")
+    with pytest.raises(ValueError, match="too small"):
+        Renderer("rgb_array", 200, 200)
 
 
-def test_missing_pygame_names_the_extra(monkeypatch):
+def test_missing_pygame_says_what_to_install(monkeypatch):
     monkeypatch.setitem(sys.modules, "pygame", None)  # "import pygame" now fails
     with pytest.raises(ImportError, match=re.escape(INSTALL_HINT)) as info:
         Renderer("rgb_array")
@@ -154,54 +191,3 @@ def test_import_does_not_import_pygame():
     code = "import sys, srpb_gym, srpb_gym.render; print('pygame' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
-
-
-# ---------------------------------------------------------------------- geometry
-def test_personal_space_contour_is_the_metric_level_set():
-    """At every contour point the m_psi kernel (paper semantics) reads the contour level."""
-    xy = np.array([[1.0, 2.0], [-3.0, 0.5], [0.0, 0.0]])
-    yaw = np.array([0.7, -2.5, math.pi])
-    velocity = np.array([[0.8, 0.6], [0.0, 0.0], [-0.2, 0.1]])
-    contours = personal_space_contours(xy, yaw, velocity, level=0.5, n=36)
-    assert contours.shape == (3, 36, 2)
-    n = contours.shape[1]
-    for p in range(3):
-        rx, ry = contours[p, :, 0].copy(), contours[p, :, 1].copy()
-        psi, dirv = np.empty(n), np.empty(n)
-        rep = np.ones(n)
-        zeros = np.zeros(n)
-        kernels.person_terms(
-            rx, ry, zeros, zeros, np.arange(n), xy[p, 0] * rep, xy[p, 1] * rep, yaw[p] * rep,
-            velocity[p, 0] * rep, velocity[p, 1] * rep, zeros, zeros, zeros, zeros,
-            3.3, 0.5, 0.275, 0.28, False, psi, dirv,
-        )  # fmt: skip
-        np.testing.assert_allclose(psi, 0.5, atol=1e-9)
-
-
-def test_personal_space_is_longer_in_front():
-    contour = personal_space_contours(np.zeros((1, 2)), np.zeros(1), np.zeros((1, 2)), n=4)[0]
-    # points at phi = -pi, -pi/2, 0, pi/2: behind, right, ahead, left
-    k = 2.0 * math.log(2.0)
-    np.testing.assert_allclose(contour[2], [math.sqrt(k * 0.5), 0.0], atol=1e-12)
-    np.testing.assert_allclose(contour[0], [-math.sqrt(k * 0.25), 0.0], atol=1e-12)
-    np.testing.assert_allclose(abs(contour[1, 1]), math.sqrt(k / 3.0), atol=1e-12)
-
-
-def test_covariance_ellipse_is_at_sigma():
-    rng = np.random.default_rng(1)
-    m = rng.normal(size=(5, 2, 2))
-    cov = m @ m.transpose(0, 2, 1) + 0.01 * np.eye(2)
-    xy = rng.normal(size=(5, 2))
-    pts = covariance_ellipses(xy, cov, sigma=2.0, n=16)
-    d = pts - xy[:, None, :]
-    maha = np.einsum("kni,kij,knj->kn", d, np.linalg.inv(cov), d)
-    np.testing.assert_allclose(maha, 4.0, rtol=1e-9)
-
-
-def test_formation_ellipses_follow_the_members():
-    sim = _simulation("fformation")
-    ellipses = formation_ellipses(sim.crowd)
-    assert ellipses.shape == (len(sim.crowd.formation_members), 5)
-    for members, (cx, cy, a, b, _) in zip(sim.crowd.formation_members, ellipses):
-        np.testing.assert_allclose([cx, cy], sim.crowd.position[members].mean(axis=0))
-        assert a > 0 and b > 0
