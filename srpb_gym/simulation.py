@@ -24,9 +24,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from srpb_gym.angles import wrap_angle
 from srpb_gym.config import from_spec
-from srpb_gym.metrics.record import EpisodeRecord, R
+from srpb_gym.metrics.record import EpisodeRecord
 from srpb_gym.perception.detector import DetectorConfig, PeopleDetector
 from srpb_gym.perception.groups import seen_groups
 from srpb_gym.perception.lidar import Lidar, LidarConfig
@@ -34,6 +33,7 @@ from srpb_gym.perception.tracker import KalmanTracker, TrackerConfig
 from srpb_gym.sim import geometry
 from srpb_gym.sim.crowd import Crowd, SocialForceConfig
 from srpb_gym.sim.layout import EpisodeLayout
+from srpb_gym.sim.recording import GROW_TRACK_PERSON, GROW_TRACKED, MIN_GROUP, OK, record_sample
 from srpb_gym.sim.robot import RobotConfig, body_to_world, limit_commands, measure_velocity
 from srpb_gym.sim.world import World
 
@@ -159,16 +159,16 @@ class Simulation:
         self._robot_radius = np.full(n_robots, self.robot_config.radius)
         self.robots = [self._robot_state(r.goal) for r in layout.robots]
         self._init_group_buffers()
+        self._planning_time = None
         self._sense_and_record()
 
     def _init_group_buffers(self) -> None:
-        """Ground-truth rows and groups (membership is fixed for the episode) and scratch
-        space for the groups each robot sees."""
+        """The true groups (membership is fixed for the episode) and scratch space for the
+        groups each robot sees."""
         p, crowd = self.n_people, self.crowd
-        self._gt_rows = np.zeros((p, 9))  # covariance columns stay 0
-        self._gt_ids = np.arange(p, dtype=np.int64)
         self._form_counts = np.zeros(crowd.formation_centers.shape[0], dtype=np.int64)
-        self._gt_groups = self._collect_groups(self._gt_ids, 2)
+        self._gt_groups = self._collect_groups(np.arange(p, dtype=np.int64), MIN_GROUP)
+        self._group_scratch = np.zeros((5, self.tracker_config.max_tracks), dtype=np.int64)
 
     def _robot_state(self, goal: Sequence[float]) -> RobotState:
         return RobotState(
@@ -192,12 +192,7 @@ class Simulation:
         if self.robot_config.kinematics == "diff":
             cmd = cmd.copy()
             cmd[:, 1] = 0.0
-        if planning_time is not None:
-            pt = np.ravel(planning_time)
-            for r, state in enumerate(self.robots):
-                value = float(pt[r] if pt.size > 1 else pt[0])
-                state.record.robot[-1, R["planning_time"]] = value
-                state.gt_record.robot[-1, R["planning_time"]] = value
+        self._planning_time = planning_time
         dt = self.config.control_dt
         limit_commands(cmd, self.command, self._low, self._high, self._acc, dt, self.command)
         before = self.world.robot_pose.copy()
@@ -264,68 +259,44 @@ class Simulation:
         )
         first = state.record.n_samples == 0
         state.tracker.step(0.0 if first else self.config.control_dt, det.xy, det.yaw, det.std)
-        tracks = state.tracker.tracks()
-        self._remember_people(state, tracks.ids, tracks.detection, det.index)
-        robot_row = self._robot_row(pose, r, state.goal)
-        self._append_tracked(state, robot_row, tracks)
-        self._append_truth(state, robot_row)
+        self._record(r, state, det.index)
 
-    def _robot_row(self, pose, r: int, goal) -> NDArray[np.float64]:
-        v = self.velocity[r]
-        yaw = wrap_angle(float(pose[2]))
-        return np.array(
-            [
-                self.t,
-                pose[0],
-                pose[1],
-                yaw,
-                v[0],
-                v[1],
-                v[2],
-                goal[0],
-                goal[1],
-                goal[2],
-                self.obstacle_dist[r],
-                math.nan,
-            ]
-        )
-
-    @staticmethod
-    def _remember_people(state: RobotState, ids, detection, det_index) -> None:
-        """Which true person each track last followed (for the groups the robot sees)."""
-        if ids.size and ids.max() >= state.track_person.shape[0]:
-            grown = np.full(2 * int(ids.max()) + 1, -1, dtype=np.int64)
-            grown[: state.track_person.shape[0]] = state.track_person
-            state.track_person = grown
-        matched = detection >= 0
-        state.track_person[ids[matched]] = det_index[detection[matched]]
-
-    def _append_tracked(self, state: RobotState, robot_row, tracks) -> None:
-        k = tracks.ids.shape[0]
-        rows = np.empty((k, 9))
-        rows[:, 0:2] = tracks.xy
-        rows[:, 2] = tracks.yaw
-        rows[:, 3:7] = tracks.covariance.reshape(k, 4)
-        rows[:, 7:9] = tracks.velocity
-        gids, sizes, members = self._collect_groups(state.track_person[tracks.ids], 2)
-        state.record.append(robot_row, tracks.ids, rows, gids, sizes, members, check=False)
-
-    def _append_truth(self, state: RobotState, robot_row) -> None:
-        rows = self._gt_rows
-        rows[:, 0:2] = self.world.people_xy
-        rows[:, 2] = self.crowd.yaw
-        rows[:, 7:9] = self.world.people_velocity
-        state.gt_record.append(robot_row, self._gt_ids, rows, *self._gt_groups, check=False)
+    def _record(self, r: int, state: RobotState, det_index: NDArray[np.int64]) -> None:
+        """Append this step's sample to both records of robot ``r`` (one compiled call)."""
+        pt = self._planning_time
+        if pt is None:
+            pt = math.nan
+        elif not isinstance(pt, float):
+            pt = np.ravel(pt)
+            pt = float(pt[r] if pt.size > 1 else pt[0])
+        rec, gt, world = state.record, state.gt_record, self.world
+        while True:
+            code = record_sample(
+                self.t, world.robot_pose, self.velocity, r, state.goal, self.obstacle_dist, pt,
+                *state.tracker.arrays, det_index, state.track_person, self.crowd.formation_of,
+                self._form_counts, self._group_scratch, world.people_xy, self.crowd.yaw,
+                world.people_velocity, *self._gt_groups, rec.tables, rec.counts, gt.tables,
+                gt.counts,
+            )  # fmt: skip
+            if code == OK:
+                return
+            if code == GROW_TRACK_PERSON:
+                grown = np.full(2 * state.tracker.next_id + 1, -1, dtype=np.int64)
+                grown[: state.track_person.shape[0]] = state.track_person
+                state.track_person = grown
+            elif code == GROW_TRACKED:
+                cap = self.tracker_config.max_tracks
+                rec.reserve(1, cap, cap, cap)
+            else:
+                gt.reserve(1, self.n_people, self.n_people, self.n_people)
 
     def _collect_groups(self, people: NDArray[np.int64], min_members: int):
         """F-formations with at least ``min_members`` of ``people`` (the true person of each
-        row, -1 unknown): group ids (formation indices), sizes, member rows; or Nones."""
+        row, -1 unknown): group ids (formation indices), sizes, member rows."""
         k = people.shape[0]
         gids, sizes, members = (np.empty(k, dtype=np.int64) for _ in range(3))
         g, m = seen_groups(people, self.crowd.formation_of, min_members, self._form_counts,
                            gids, sizes, members)  # fmt: skip
-        if g == 0:
-            return None, None, None
         return gids[:g], sizes[:g], members[:m]
 
     # ------------------------------------------------------------------ queries

@@ -45,45 +45,30 @@ P = {name: i for i, name in enumerate(PERSON_FIELDS)}
 # integer tables: people (sample, id); groups (sample, id, start, size); members (row)
 _PINT = {"people_sample": 0, "people_id": 1}
 _GINT = {"group_sample": 0, "group_id": 1, "group_start": 2, "group_size": 3}
+# Entries of EpisodeRecord.counts: rows in use of the robot, people (and people_sample/id),
+# group and member tables; where the last appended sample's people, groups and members
+# start (-1: unknown, after from_arrays).
+SAMPLES, ROWS, GROUPS, MEMBERS, LAST_ROW, LAST_GROUP, LAST_MEMBER = range(7)
 
 
-class _Growable:
-    """A 1-D or 2-D array with amortised O(1) appends along its first axis."""
-
-    __slots__ = ("buf", "n")
-
-    def __init__(self, width: int | None, dtype: type, capacity: int = 64) -> None:
-        shape = (capacity,) if width is None else (capacity, width)
-        self.buf = np.empty(shape, dtype=dtype)
-        self.n = 0
-
-    def reserve(self, extra: int) -> None:
-        need = self.n + extra
-        if need > self.buf.shape[0]:
-            shape = (max(need, 2 * self.buf.shape[0]), *self.buf.shape[1:])
-            new = np.empty(shape, dtype=self.buf.dtype)
-            new[: self.n] = self.buf[: self.n]
-            self.buf = new
-
-    def extend(self, values: ArrayLike) -> None:
-        values = np.asarray(values)
-        k = values.shape[0]
-        self.reserve(k)
-        self.buf[self.n : self.n + k] = values
-        self.n += k
-
-    def grow(self, k: int) -> NDArray:
-        """``k`` new rows at the end, to be filled by the caller."""
-        self.reserve(k)
-        self.n += k
-        return self.buf[self.n - k : self.n]
-
-    def view(self) -> NDArray:
-        return self.buf[: self.n]
+def _grown(buf: NDArray, used: int, need: int) -> NDArray:
+    """``buf`` itself when it has ``need`` rows, else a copy of its ``used`` rows in a buffer
+    of max(need, 2 x capacity) rows."""
+    if need <= buf.shape[0]:
+        return buf
+    new = np.empty((max(need, 2 * buf.shape[0]), *buf.shape[1:]), dtype=buf.dtype)
+    new[:used] = buf[:used]
+    return new
 
 
 class EpisodeRecord:
-    """A columnar SRPB episode; see the module docstring for the tables."""
+    """A columnar SRPB episode; see the module docstring for the tables.
+
+    Storage: preallocated tables (robot, people, pint = people sample and id, gint = group
+    sample, id, start, size; members) of which the first :attr:`counts` rows are in use;
+    appends grow them by doubling. Compiled writers (the simulation's) fill the tables and
+    ``counts`` directly after :meth:`reserve`.
+    """
 
     def __init__(
         self,
@@ -91,15 +76,32 @@ class EpisodeRecord:
         person_labels: Sequence[str] | None = None,
         group_labels: Sequence[str] | None = None,
     ) -> None:
-        self._robot = _Growable(len(ROBOT_FIELDS), np.float64, capacity)
-        self._people = _Growable(len(PERSON_FIELDS), np.float64, capacity)
-        self._pint = _Growable(len(_PINT), np.int64, capacity)
-        self._gint = _Growable(len(_GINT), np.int64, max(capacity // 4, 4))
-        self._members = _Growable(None, np.int64, max(capacity // 4, 4))
+        small = max(capacity // 4, 4)
+        self.tables = (
+            np.empty((capacity, len(ROBOT_FIELDS))),
+            np.empty((capacity, len(PERSON_FIELDS))),
+            np.empty((capacity, len(_PINT)), dtype=np.int64),
+            np.empty((small, len(_GINT)), dtype=np.int64),
+            np.empty(small, dtype=np.int64),
+        )
+        self.counts = np.zeros(7, dtype=np.int64)
+        self.counts[LAST_ROW:] = -1
         self.person_labels = None if person_labels is None else tuple(person_labels)
         self.group_labels = None if group_labels is None else tuple(group_labels)
 
     # ------------------------------------------------------------------ building
+    def reserve(self, samples: int, rows: int, groups: int, members: int) -> None:
+        """Make room for this many more robot samples, people rows, groups and members."""
+        n = self.counts
+        robot, people, pint, gint, mem = self.tables
+        self.tables = (
+            _grown(robot, n[SAMPLES], n[SAMPLES] + samples),
+            _grown(people, n[ROWS], n[ROWS] + rows),
+            _grown(pint, n[ROWS], n[ROWS] + rows),
+            _grown(gint, n[GROUPS], n[GROUPS] + groups),
+            _grown(mem, n[MEMBERS], n[MEMBERS] + members),
+        )
+
     def append(
         self,
         robot: ArrayLike,
@@ -123,41 +125,41 @@ class EpisodeRecord:
             raise ValueError(
                 f"robot sample must have {len(ROBOT_FIELDS)} values, got shape {row.shape}"
             )
-        sample = self._robot.n
-        first_person = self._people.n
-        self._last_start = (first_person, self._gint.n, self._members.n)
         k = 0
         if people is not None:
             block = np.asarray(people, dtype=np.float64)
             k = block.shape[0] if block.ndim == 2 else block.size // len(PERSON_FIELDS)
             if np.shape(people_ids) != (k,):
                 raise ValueError(f"need {k} people ids, got shape {np.shape(people_ids)}")
+        sizes = members = None
         if group_ids is not None:
-            self._append_groups(
-                sample, first_person, k, group_ids, group_sizes, group_members, check
-            )
+            sizes = np.asarray(group_sizes, dtype=np.int64)
+            members = np.asarray(group_members, dtype=np.int64)
+            if check:
+                self._check_groups(k, group_ids, sizes, members)
+        g = 0 if sizes is None else sizes.shape[0]
+        self.reserve(1, k, g, 0 if members is None else members.shape[0])
+        n = self.counts
+        robot_t, people_t, pint, gint, mem = self.tables
+        sample, first_person = int(n[SAMPLES]), int(n[ROWS])
+        n[LAST_ROW], n[LAST_GROUP], n[LAST_MEMBER] = first_person, n[GROUPS], n[MEMBERS]
+        if g:
+            rows = gint[n[GROUPS] : n[GROUPS] + g]
+            rows[:, 0] = sample
+            rows[:, 1] = group_ids
+            rows[:, 2] = np.cumsum(sizes) - sizes + n[MEMBERS]
+            rows[:, 3] = sizes
+            mem[n[MEMBERS] : n[MEMBERS] + members.shape[0]] = members + first_person
+            n[GROUPS] += g
+            n[MEMBERS] += members.shape[0]
         if k:
-            self._people.grow(k)[:] = block.reshape(k, len(PERSON_FIELDS))
-            ints = self._pint.grow(k)
-            ints[:, 0] = sample
-            ints[:, 1] = people_ids
-        self._robot.grow(1)[0] = row
+            people_t[first_person : first_person + k] = block.reshape(k, len(PERSON_FIELDS))
+            pint[first_person : first_person + k, 0] = sample
+            pint[first_person : first_person + k, 1] = people_ids
+            n[ROWS] += k
+        robot_t[sample] = row
+        n[SAMPLES] += 1
         return sample
-
-    def _append_groups(
-        self, sample, first_person, k, group_ids, group_sizes, group_members, check
-    ) -> None:
-        sizes = np.asarray(group_sizes, dtype=np.int64)
-        members = np.asarray(group_members, dtype=np.int64)
-        g = sizes.shape[0]
-        if check:
-            self._check_groups(k, group_ids, sizes, members)
-        rows = self._gint.grow(g)
-        rows[:, 0] = sample
-        rows[:, 1] = group_ids
-        rows[:, 2] = np.cumsum(sizes) - sizes + self._members.n
-        rows[:, 3] = sizes
-        self._members.grow(members.shape[0])[:] = members + first_person
 
     @staticmethod
     def _check_groups(k: int, group_ids, sizes, members) -> None:
@@ -186,21 +188,29 @@ class EpisodeRecord:
         """Build a record from whole tables (``group_members`` indexes people rows)."""
         robot = np.asarray(robot, dtype=np.float64).reshape(-1, len(ROBOT_FIELDS))
         rec = cls(max(robot.shape[0], 1), person_labels, group_labels)
-        rec._robot.extend(robot)
+        block = np.zeros((0, len(PERSON_FIELDS)))
         if people is not None:
             block = np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS))
-            rec._people.extend(block)
-            ints = rec._pint.grow(block.shape[0])
-            ints[:, 0] = people_sample
-            ints[:, 1] = people_id
+        sizes = np.zeros(0, dtype=np.int64)
+        members = np.zeros(0, dtype=np.int64)
         if group_sample is not None:
             sizes = np.asarray(group_size, dtype=np.int64).reshape(-1)
-            rows = rec._gint.grow(sizes.shape[0])
-            rows[:, 0] = group_sample
-            rows[:, 1] = group_id
-            rows[:, 2] = np.cumsum(sizes) - sizes
-            rows[:, 3] = sizes
-            rec._members.extend(np.asarray(group_members, dtype=np.int64).reshape(-1))
+            members = np.asarray(group_members, dtype=np.int64).reshape(-1)
+        p, g, m = block.shape[0], sizes.shape[0], members.shape[0]
+        rec.reserve(robot.shape[0], p, g, m)
+        robot_t, people_t, pint, gint, mem = rec.tables
+        robot_t[: robot.shape[0]] = robot
+        people_t[:p] = block
+        if people is not None:
+            pint[:p, 0] = people_sample
+            pint[:p, 1] = people_id
+        if group_sample is not None:
+            gint[:g, 0] = group_sample
+            gint[:g, 1] = group_id
+            gint[:g, 2] = np.cumsum(sizes) - sizes
+            gint[:g, 3] = sizes
+            mem[:m] = members
+        rec.counts[:LAST_ROW] = robot.shape[0], p, g, m
         rec.validate()
         return rec
 
@@ -232,58 +242,58 @@ class EpisodeRecord:
         n = self.n_samples - 1
         if n < 0:
             raise ValueError("the record is empty")
-        start = self.__dict__.get("_last_start")  # set by append; absent after from_arrays
-        if start is None:
-            start = self._sample_start(n)
-        p0, g0, m0 = start
-        pint, gint = self._pint.view(), self._gint.view()
+        p0, g0, m0 = (int(v) for v in self.counts[LAST_ROW:])
+        if p0 < 0:  # built by from_arrays
+            p0, g0, m0 = self._sample_start(n)
         return (
-            self._robot.view()[n:],
-            self._people.view()[p0:],
-            pint[p0:, 1],
-            gint[g0:, 3],
-            self._members.view()[m0:] - p0,
+            self.robot[n:],
+            self.people[p0:],
+            self._int_view(2, ROWS)[p0:, 1],
+            self._int_view(3, GROUPS)[g0:, 3],
+            self.group_members[m0:] - p0,
         )
 
     def _sample_start(self, n: int) -> tuple[int, int, int]:
-        p0 = int(np.searchsorted(self._pint.view()[:, 0], n))
-        gint = self._gint.view()
+        p0 = int(np.searchsorted(self._int_view(2, ROWS)[:, 0], n))
+        gint = self._int_view(3, GROUPS)
         g0 = int(np.searchsorted(gint[:, 0], n))
-        m0 = int(gint[g0, 2]) if g0 < gint.shape[0] else self._members.n
+        m0 = int(gint[g0, 2]) if g0 < gint.shape[0] else int(self.counts[MEMBERS])
         return p0, g0, m0
+
+    def _int_view(self, table: int, count: int) -> NDArray[np.int64]:
+        return self.tables[table][: self.counts[count]]
 
     # ------------------------------------------------------------------ reading
     @property
     def n_samples(self) -> int:
-        return self._robot.n
+        return int(self.counts[SAMPLES])
 
     @property
     def robot(self) -> NDArray[np.float64]:
         """(N, 12) view of the robot table."""
-        return self._robot.view()
+        return self.tables[0][: self.counts[SAMPLES]]
 
     @property
     def people(self) -> NDArray[np.float64]:
         """(P, 9) view of the people table."""
-        return self._people.view()
+        return self.tables[1][: self.counts[ROWS]]
 
     def robot_col(self, name: str) -> NDArray[np.float64]:
         """One robot column as a contiguous array (a copy)."""
-        return np.ascontiguousarray(self._robot.view()[:, R[name]])
+        return np.ascontiguousarray(self.robot[:, R[name]])
 
     def person_col(self, name: str) -> NDArray[np.float64]:
         """One people column as a contiguous array (a copy)."""
-        return np.ascontiguousarray(self._people.view()[:, P[name]])
+        return np.ascontiguousarray(self.people[:, P[name]])
 
     def __getattr__(self, name: str) -> NDArray[np.int64]:
-        state = self.__dict__
         # integer columns are returned as contiguous copies (what the kernels take)
         if name in _PINT:
-            return np.ascontiguousarray(state["_pint"].view()[:, _PINT[name]])
+            return np.ascontiguousarray(self._int_view(2, ROWS)[:, _PINT[name]])
         if name in _GINT:
-            return np.ascontiguousarray(state["_gint"].view()[:, _GINT[name]])
+            return np.ascontiguousarray(self._int_view(3, GROUPS)[:, _GINT[name]])
         if name == "group_members":
-            return state["_members"].view()
+            return self._int_view(4, MEMBERS)
         raise AttributeError(name)
 
     def person_label(self, pid: int) -> str:

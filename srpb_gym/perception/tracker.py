@@ -134,13 +134,14 @@ class Tracks(NamedTuple):
     detection: np.ndarray  # (K,) int64 index of that detection, or -1
 
 
-# Rows of the per-track tables f (float) and iv (int); entries of the counters.
-_YAW, _AGE, _TSU = 0, 1, 2
-_ID, _HITS, _DET = 0, 1, 2
-_N, _NEXT_ID, _REFUSED, _VISIBLE = 0, 1, 2, 3
+# Layout of the state arrays (KalmanTracker.arrays: x, P, f, iv, cnt, cfg), for compiled
+# readers: rows of the per-track tables f (float) and iv (int); entries of the counters.
+F_YAW, F_AGE, F_TSU = 0, 1, 2
+I_ID, I_HITS, I_DET = 0, 1, 2
+N_LIVE, N_NEXT_ID, N_REFUSED, N_VISIBLE = 0, 1, 2, 3
 # Entries of the compiled parameter array.
-_C_ACC_VAR, _C_VEL_VAR, _C_GATE, _C_REGATE, _C_DIST2 = 0, 1, 2, 3, 4
-_C_TIMEOUT, _C_YAW_W, _C_HEADING, _C_HITS = 5, 6, 7, 8
+C_ACC_VAR, C_VEL_VAR, C_GATE, C_REGATE, C_DIST2 = 0, 1, 2, 3, 4
+C_TIMEOUT, C_YAW_W, C_HEADING, C_HITS = 5, 6, 7, 8
 # Workspace rows: wt (per track) and wd (per detection).
 _DEG, _ROW = 0, 1
 _ASSIGN, _DEGC, _COL = 0, 1, 2
@@ -163,33 +164,33 @@ def _predict_and_gate(dt, x, P, f, iv, matched, det_xy, det_yaw, det_std, cfg, c
             code = 4
     if code != 0:
         return code, 0, 0
-    q = cfg[_C_ACC_VAR]
+    q = cfg[C_ACC_VAR]
     q_pp, q_pv, q_vv = q * dt**4 / 4.0, q * dt**3 / 2.0, q * dt * dt
     n = 0
-    for r in range(cnt[_N]):
-        f[_AGE, r] += dt
-        f[_TSU, r] += dt
-        if f[_TSU, r] > cfg[_C_TIMEOUT]:
+    for r in range(cnt[N_LIVE]):
+        f[F_AGE, r] += dt
+        f[F_TSU, r] += dt
+        if f[F_TSU, r] > cfg[C_TIMEOUT]:
             continue
         if n != r:
             x[n], P[n], f[:, n], iv[:, n] = x[r], P[r], f[:, r], iv[:, r]
         if dt > 0.0:
             _predict(x[n], P[n], dt, q_pp, q_pv, q_vv)
         matched[n] = False
-        iv[_DET, n] = -1
+        iv[I_DET, n] = -1
         wt[_DEG, n] = 0
         n += 1
-    cnt[_N] = n
+    cnt[N_LIVE] = n
     wd[_ASSIGN, :D] = -1
     wd[_DEGC, :D] = 0
     for r in range(n):
         for d in range(D):
-            c = _gated_cost(x[r], P[r], det_xy[d, 0], det_xy[d, 1], det_std[d], cfg[_C_GATE], cfg)
+            c = _gated_cost(x[r], P[r], det_xy[d, 0], det_xy[d, 1], det_std[d], cfg[C_GATE], cfg)
             cost[r, d] = c
             if c < math.inf:
                 wt[_DEG, r] += 1
                 wd[_DEGC, d] += 1
-    rows, cols = _split(n, D, cost, wt, wd, sub, cfg[_C_GATE])
+    rows, cols = _split(n, D, cost, wt, wd, sub, cfg[C_GATE])
     return 0, rows, cols
 
 
@@ -213,7 +214,7 @@ def _predict(x, P, dt, q_pp, q_pv, q_vv):
 def _gated_cost(x, P, zx, zy, std, gate, cfg):
     """Squared Mahalanobis distance of a detection to a track, inf outside the gates."""
     ex, ey = zx - x[0], zy - x[1]
-    if ex * ex + ey * ey > cfg[_C_DIST2]:
+    if ex * ex + ey * ey > cfg[C_DIST2]:
         return math.inf
     r2 = max(std * std, _MIN_VAR)
     sxx, syy, sxy = P[0, 0] + r2, P[1, 1] + r2, P[0, 1]
@@ -263,16 +264,16 @@ def _update_and_spawn(x, P, f, iv, matched, det_xy, det_yaw, det_std, cfg, cnt, 
         r, d = wt[_ROW, ri[k]], wd[_COL, ci[k]]
         if cost[r, d] < math.inf:
             wd[_ASSIGN, d] = r
-    n = cnt[_N]
-    if cfg[_C_REGATE] > cfg[_C_GATE]:
+    n = cnt[N_LIVE]
+    if cfg[C_REGATE] > cfg[C_GATE]:
         _reacquire(x, P, det_xy, det_std, cfg, n, wt, wd)
     refused = 0
     for d in range(det_xy.shape[0]):
         t = wd[_ASSIGN, d]
         if t >= 0:
             _update(x[t], P[t], det_xy[d, 0], det_xy[d, 1], det_std[d], scratch)
-            turn = wrap_angle(det_yaw[d] - f[_YAW, t])
-            f[_YAW, t] = wrap_angle(f[_YAW, t] + cfg[_C_YAW_W] * turn)
+            turn = wrap_angle(det_yaw[d] - f[F_YAW, t])
+            f[F_YAW, t] = wrap_angle(f[F_YAW, t] + cfg[C_YAW_W] * turn)
         elif n == x.shape[0]:
             refused += 1
             continue
@@ -280,12 +281,12 @@ def _update_and_spawn(x, P, f, iv, matched, det_xy, det_yaw, det_std, cfg, cnt, 
             t = n
             n += 1
             _start(t, x[t], P[t], f, iv, det_xy[d], det_yaw[d], det_std[d], cfg, cnt)
-        f[_TSU, t] = 0.0
-        iv[_HITS, t] += 1
-        iv[_DET, t] = d
+        f[F_TSU, t] = 0.0
+        iv[I_HITS, t] += 1
+        iv[I_DET, t] = d
         matched[t] = True
-    cnt[_N] = n
-    cnt[_REFUSED] += refused
+    cnt[N_LIVE] = n
+    cnt[N_REFUSED] += refused
     _confirm(x, f, iv, cfg, cnt)
     return refused
 
@@ -310,7 +311,7 @@ def _reacquire(x, P, det_xy, det_std, cfg, n, wt, wd):
                 for d in range(D):
                     if wd[_ASSIGN, d] < 0:
                         c = _gated_cost(x[r], P[r], det_xy[d, 0], det_xy[d, 1], det_std[d],
-                                        cfg[_C_REGATE], cfg)  # fmt: skip
+                                        cfg[C_REGATE], cfg)  # fmt: skip
                         if c < best:
                             best, bt, bd = c, r, d
         if bt < 0:
@@ -326,12 +327,12 @@ def _start(t, x, P, f, iv, z, yaw, std, cfg, cnt):
     x[0], x[1], x[2], x[3] = z[0], z[1], 0.0, 0.0
     P[:, :] = 0.0
     P[0, 0] = P[1, 1] = max(std * std, _MIN_VAR)
-    P[2, 2] = P[3, 3] = cfg[_C_VEL_VAR]
-    f[_YAW, t] = wrap_angle(yaw)
-    f[_AGE, t] = 0.0
-    iv[_ID, t] = cnt[_NEXT_ID]
-    iv[_HITS, t] = 0
-    cnt[_NEXT_ID] += 1
+    P[2, 2] = P[3, 3] = cfg[C_VEL_VAR]
+    f[F_YAW, t] = wrap_angle(yaw)
+    f[F_AGE, t] = 0.0
+    iv[I_ID, t] = cnt[N_NEXT_ID]
+    iv[I_HITS, t] = 0
+    cnt[N_NEXT_ID] += 1
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -361,13 +362,13 @@ def _update(x, P, zx, zy, std, scratch):
 def _confirm(x, f, iv, cfg, cnt):
     """Count the confirmed tracks; turn the fast confirmed ones to face their velocity."""
     visible = 0
-    v2 = cfg[_C_HEADING] * cfg[_C_HEADING]
-    for t in range(cnt[_N]):
-        if iv[_HITS, t] >= cfg[_C_HITS]:
+    v2 = cfg[C_HEADING] * cfg[C_HEADING]
+    for t in range(cnt[N_LIVE]):
+        if iv[I_HITS, t] >= cfg[C_HITS]:
             visible += 1
             if x[t, 2] * x[t, 2] + x[t, 3] * x[t, 3] > v2:
-                f[_YAW, t] = math.atan2(x[t, 3], x[t, 2])
-    cnt[_VISIBLE] = visible
+                f[F_YAW, t] = math.atan2(x[t, 3], x[t, 2])
+    cnt[N_VISIBLE] = visible
 
 
 _NO_INDEX = np.empty(0, np.int64)
@@ -414,6 +415,9 @@ class KalmanTracker:
         self._matched = np.zeros(cap, dtype=np.bool_)
         self._cnt = np.zeros(4, dtype=np.int64)
         self._scratch = np.zeros((4, 4))
+        #: the state arrays (x, P, f, iv, cnt, cfg) for compiled readers; see the layout
+        #: constants of this module
+        self.arrays = (self._x, self._P, self._f, self._i, self._cnt, self._cfg)
         self._reserve(cap)
         views = [a.view() for a in (self._x, self._P, self._f, self._i, self._matched)]
         for v in views:
@@ -458,35 +462,35 @@ class KalmanTracker:
         if rows:
             ri, ci = linear_sum_assignment(self._sub[: rows * cols].reshape(rows, cols))
         self.last_refused = _update_and_spawn(*state, xy, yaw, std, *work, ri, ci, self._scratch)
-        n, visible = int(self._cnt[_N]), int(self._cnt[_VISIBLE])
+        n, visible = int(self._cnt[N_LIVE]), int(self._cnt[N_VISIBLE])
         if visible == n:
             self._sel = slice(0, n)
         else:
-            self._sel = np.flatnonzero(self._i[_HITS, :n] >= self.config.min_hits)
+            self._sel = np.flatnonzero(self._i[I_HITS, :n] >= self.config.min_hits)
         return visible
 
     def __len__(self) -> int:
         """Number of reported tracks."""
-        return int(self._cnt[_VISIBLE])
+        return int(self._cnt[N_VISIBLE])
 
-    num_live = property(lambda self: int(self._cnt[_N]), doc="Live tracks, confirmed or not.")
-    next_id = property(lambda self: int(self._cnt[_NEXT_ID]), doc="Id of the next new track.")
+    num_live = property(lambda self: int(self._cnt[N_LIVE]), doc="Live tracks, confirmed or not.")
+    next_id = property(lambda self: int(self._cnt[N_NEXT_ID]), doc="Id of the next new track.")
     refused = property(
-        lambda self: int(self._cnt[_REFUSED]),
+        lambda self: int(self._cnt[N_REFUSED]),
         doc="Detections that started no track (capacity full) this episode.",
     )
 
     # The reported tracks, K rows each, in creation order (see :class:`Tracks`).
-    ids = property(lambda self: self._ro_i[_ID, self._sel], doc="(K,) int64 ids.")
+    ids = property(lambda self: self._ro_i[I_ID, self._sel], doc="(K,) int64 ids.")
     xy = property(lambda self: self._ro_x[self._sel, :2], doc="(K, 2) positions [m].")
     velocity = property(lambda self: self._ro_x[self._sel, 2:], doc="(K, 2) velocities [m/s].")
-    yaw = property(lambda self: self._ro_f[_YAW, self._sel], doc="(K,) headings [rad].")
+    yaw = property(lambda self: self._ro_f[F_YAW, self._sel], doc="(K,) headings [rad].")
     covariance = property(lambda self: self._ro_P[self._sel, :2, :2], doc="(K, 2, 2) [m^2].")
     state_covariance = property(lambda self: self._ro_P[self._sel], doc="(K, 4, 4), x y vx vy.")
-    age = property(lambda self: self._ro_f[_AGE, self._sel], doc="(K,) since creation [s].")
-    time_since_update = property(lambda self: self._ro_f[_TSU, self._sel], doc="(K,) [s].")
+    age = property(lambda self: self._ro_f[F_AGE, self._sel], doc="(K,) since creation [s].")
+    time_since_update = property(lambda self: self._ro_f[F_TSU, self._sel], doc="(K,) [s].")
     matched = property(lambda self: self._ro_matched[self._sel], doc="(K,) bool, this step.")
-    detection = property(lambda self: self._ro_i[_DET, self._sel], doc="(K,) int64 or -1.")
+    detection = property(lambda self: self._ro_i[I_DET, self._sel], doc="(K,) int64 or -1.")
 
     def tracks(self) -> Tracks:
         """All reported per-track arrays at once."""
