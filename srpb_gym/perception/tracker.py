@@ -6,11 +6,12 @@ isotropic position noise stds (never identities) and
 1. predicts every track by ``dt`` (constant velocity, white acceleration noise of std
    ``accel_noise_std`` held over the step): unobserved covariances grow;
 2. deletes the tracks not updated for longer than ``timeout``;
-3. pairs detections with tracks by :func:`scipy.optimize.linear_sum_assignment` on the
-   squared Mahalanobis distance to the predicted position (innovation covariance: predicted
-   position covariance + std^2 I), never across the chi-square ``gate`` or ``max_distance``;
-   the most pairs first, then the least summed distance. The solver only sees the ambiguous
-   part of the gating graph; pairs with no rival are taken directly (same result);
+3. pairs detections with tracks by a linear sum assignment (scipy's algorithm, compiled:
+   :mod:`srpb_gym.perception.assignment`) on the squared Mahalanobis distance to the
+   predicted position (innovation covariance: predicted position covariance + std^2 I),
+   never across the chi-square ``gate`` or ``max_distance``; the most pairs first, then the
+   least summed distance. The solver only sees the ambiguous part of the gating graph;
+   pairs with no rival are taken directly (same result);
 4. pairs leftover tracks and detections, closest first, under the looser ``reacquire_gate``
    (and ``max_distance``); otherwise a detection just outside the gate (1% for a 99% gate,
    more when people turn) starts a duplicate track that takes turns with the original;
@@ -18,8 +19,8 @@ isotropic position noise stds (never identities) and
    for each remaining detection while capacity lasts.
 
 Ids come from a counter never reused within an episode. The state lives in preallocated
-arrays of capacity ``max_tracks`` (live tracks in creation order), updated by two compiled
-kernels.
+arrays of capacity ``max_tracks`` (live tracks in creation order), updated by one compiled
+call per step (:mod:`srpb_gym.perception.kalman`).
 """
 
 from __future__ import annotations
@@ -30,13 +31,23 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
-from scipy.optimize import linear_sum_assignment
 
-from srpb_gym.angles import wrap_angle
 from srpb_gym.config import from_spec
+from srpb_gym.perception.kalman import (
+    F_AGE,
+    F_TSU,
+    F_YAW,
+    I_DET,
+    I_HITS,
+    I_ID,
+    N_LAST_REFUSED,
+    N_LIVE,
+    N_NEXT_ID,
+    N_REFUSED,
+    N_VISIBLE,
+    fuse,
+)
 
-_MIN_VAR = 1e-6  # floor of the measurement variance [m^2], so that std 0 (exact) works
 _ERRORS = (
     "", "dt must be a finite number >= 0", "detection positions must be finite",
     "detection yaws must be finite", "detection stds must be finite and >= 0",
@@ -134,246 +145,6 @@ class Tracks(NamedTuple):
     detection: np.ndarray  # (K,) int64 index of that detection, or -1
 
 
-# Layout of the state arrays (KalmanTracker.arrays: x, P, f, iv, cnt, cfg), for compiled
-# readers: rows of the per-track tables f (float) and iv (int); entries of the counters.
-F_YAW, F_AGE, F_TSU = 0, 1, 2
-I_ID, I_HITS, I_DET = 0, 1, 2
-N_LIVE, N_NEXT_ID, N_REFUSED, N_VISIBLE = 0, 1, 2, 3
-# Entries of the compiled parameter array.
-C_ACC_VAR, C_VEL_VAR, C_GATE, C_REGATE, C_DIST2 = 0, 1, 2, 3, 4
-C_TIMEOUT, C_YAW_W, C_HEADING, C_HITS = 5, 6, 7, 8
-# Workspace rows: wt (per track) and wd (per detection).
-_DEG, _ROW = 0, 1
-_ASSIGN, _DEGC, _COL = 0, 1, 2
-
-
-@njit(cache=True, error_model="numpy")
-def _predict_and_gate(dt, x, P, f, iv, matched, det_xy, det_yaw, det_std, cfg, cnt, cost, wt, wd,
-                      sub):  # fmt: skip
-    """Validate the inputs, predict every track by ``dt``, delete expired tracks (keeping
-    creation order), gate all pairs into ``cost`` (inf: inadmissible) and split them with
-    :func:`_split`. Returns (error code, rows, cols)."""
-    D = det_xy.shape[0]
-    code = 0 if 0.0 <= dt < math.inf else 1
-    for d in range(D):
-        if not (math.isfinite(det_xy[d, 0]) and math.isfinite(det_xy[d, 1])):
-            code = 2
-        elif not math.isfinite(det_yaw[d]):
-            code = 3
-        elif not 0.0 <= det_std[d] < math.inf:
-            code = 4
-    if code != 0:
-        return code, 0, 0
-    q = cfg[C_ACC_VAR]
-    q_pp, q_pv, q_vv = q * dt**4 / 4.0, q * dt**3 / 2.0, q * dt * dt
-    n = 0
-    for r in range(cnt[N_LIVE]):
-        f[F_AGE, r] += dt
-        f[F_TSU, r] += dt
-        if f[F_TSU, r] > cfg[C_TIMEOUT]:
-            continue
-        if n != r:
-            x[n], P[n], f[:, n], iv[:, n] = x[r], P[r], f[:, r], iv[:, r]
-        if dt > 0.0:
-            _predict(x[n], P[n], dt, q_pp, q_pv, q_vv)
-        matched[n] = False
-        iv[I_DET, n] = -1
-        wt[_DEG, n] = 0
-        n += 1
-    cnt[N_LIVE] = n
-    wd[_ASSIGN, :D] = -1
-    wd[_DEGC, :D] = 0
-    for r in range(n):
-        for d in range(D):
-            c = _gated_cost(x[r], P[r], det_xy[d, 0], det_xy[d, 1], det_std[d], cfg[C_GATE], cfg)
-            cost[r, d] = c
-            if c < math.inf:
-                wt[_DEG, r] += 1
-                wd[_DEGC, d] += 1
-    rows, cols = _split(n, D, cost, wt, wd, sub, cfg[C_GATE])
-    return 0, rows, cols
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _predict(x, P, dt, q_pp, q_pv, q_vv):
-    """x <- F x, P <- F P F^T + Q for the constant-velocity model (state x, y, vx, vy)."""
-    for a in range(2):
-        x[a] += dt * x[a + 2]
-        for j in range(4):  # F P
-            P[a, j] += dt * P[a + 2, j]
-        for i in range(4):  # (F P) F^T
-            P[i, a] += dt * P[i, a + 2]
-    for a in range(2):
-        P[a, a] += q_pp
-        P[a, a + 2] += q_pv
-        P[a + 2, a] += q_pv
-        P[a + 2, a + 2] += q_vv
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _gated_cost(x, P, zx, zy, std, gate, cfg):
-    """Squared Mahalanobis distance of a detection to a track, inf outside the gates."""
-    ex, ey = zx - x[0], zy - x[1]
-    if ex * ex + ey * ey > cfg[C_DIST2]:
-        return math.inf
-    r2 = max(std * std, _MIN_VAR)
-    sxx, syy, sxy = P[0, 0] + r2, P[1, 1] + r2, P[0, 1]
-    d2 = (syy * ex * ex - 2.0 * sxy * ex * ey + sxx * ey * ey) / (sxx * syy - sxy * sxy)
-    return d2 if d2 <= gate else math.inf
-
-
-@njit(cache=True, error_model="numpy")
-def _split(n, D, cost, wt, wd, sub, gate):
-    """Assign the admissible pairs with no rival (``wd[_ASSIGN]``); write the rest into
-    ``sub`` as a dense problem of tracks ``wt[_ROW, :rows]`` x detections ``wd[_COL, :cols]``
-    (inadmissible entries: a cost above any sum of admissible ones). Returns (rows, cols)."""
-    rows = 0
-    for r in range(n):
-        keep = False
-        for d in range(D):
-            if cost[r, d] < math.inf:
-                if wt[_DEG, r] == 1 and wd[_DEGC, d] == 1:
-                    wd[_ASSIGN, d] = r
-                else:
-                    keep = True
-        if keep:
-            wt[_ROW, rows] = r
-            rows += 1
-    if rows == 0:
-        return 0, 0
-    cols = 0
-    for d in range(D):
-        if wd[_DEGC, d] > 1 or (wd[_DEGC, d] == 1 and wd[_ASSIGN, d] < 0):
-            wd[_COL, cols] = d
-            cols += 1
-    big = gate * (min(rows, cols) + 1) + 1.0
-    for i in range(rows):
-        for j in range(cols):
-            c = cost[wt[_ROW, i], wd[_COL, j]]
-            sub[i * cols + j] = c if c < math.inf else big
-    return rows, cols
-
-
-@njit(cache=True, error_model="numpy")
-def _update_and_spawn(x, P, f, iv, matched, det_xy, det_yaw, det_std, cfg, cnt, cost, wt, wd,
-                      ri, ci, scratch):  # fmt: skip
-    """Take the solver's admissible pairs, give leftovers a second chance, update paired
-    tracks, start tracks for the other detections (while capacity lasts), set headings and
-    count the confirmed tracks. Returns the number of detections refused for capacity."""
-    for k in range(ri.size):
-        r, d = wt[_ROW, ri[k]], wd[_COL, ci[k]]
-        if cost[r, d] < math.inf:
-            wd[_ASSIGN, d] = r
-    n = cnt[N_LIVE]
-    if cfg[C_REGATE] > cfg[C_GATE]:
-        _reacquire(x, P, det_xy, det_std, cfg, n, wt, wd)
-    refused = 0
-    for d in range(det_xy.shape[0]):
-        t = wd[_ASSIGN, d]
-        if t >= 0:
-            _update(x[t], P[t], det_xy[d, 0], det_xy[d, 1], det_std[d], scratch)
-            turn = wrap_angle(det_yaw[d] - f[F_YAW, t])
-            f[F_YAW, t] = wrap_angle(f[F_YAW, t] + cfg[C_YAW_W] * turn)
-        elif n == x.shape[0]:
-            refused += 1
-            continue
-        else:
-            t = n
-            n += 1
-            _start(t, x[t], P[t], f, iv, det_xy[d], det_yaw[d], det_std[d], cfg, cnt)
-        f[F_TSU, t] = 0.0
-        iv[I_HITS, t] += 1
-        iv[I_DET, t] = d
-        matched[t] = True
-    cnt[N_LIVE] = n
-    cnt[N_REFUSED] += refused
-    _confirm(x, f, iv, cfg, cnt)
-    return refused
-
-
-@njit(cache=True, error_model="numpy")
-def _reacquire(x, P, det_xy, det_std, cfg, n, wt, wd):
-    """Pair the tracks and detections left unpaired, smallest distance first, under the
-    looser gate (still capped by ``max_distance``)."""
-    D = det_xy.shape[0]
-    used = wt[_DEG]  # reused as a flag row
-    used[:n] = 0
-    free = 0
-    for d in range(D):
-        if wd[_ASSIGN, d] >= 0:
-            used[wd[_ASSIGN, d]] = 1
-        else:
-            free += 1
-    while free > 0:
-        best, bt, bd = math.inf, -1, -1
-        for r in range(n):
-            if used[r] == 0:
-                for d in range(D):
-                    if wd[_ASSIGN, d] < 0:
-                        c = _gated_cost(x[r], P[r], det_xy[d, 0], det_xy[d, 1], det_std[d],
-                                        cfg[C_REGATE], cfg)  # fmt: skip
-                        if c < best:
-                            best, bt, bd = c, r, d
-        if bt < 0:
-            return
-        wd[_ASSIGN, bd] = bt
-        used[bt] = 1
-        free -= 1
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _start(t, x, P, f, iv, z, yaw, std, cfg, cnt):
-    """New track ``t`` at rest at detection ``z``, P = diag(std^2, std^2, v^2, v^2)."""
-    x[0], x[1], x[2], x[3] = z[0], z[1], 0.0, 0.0
-    P[:, :] = 0.0
-    P[0, 0] = P[1, 1] = max(std * std, _MIN_VAR)
-    P[2, 2] = P[3, 3] = cfg[C_VEL_VAR]
-    f[F_YAW, t] = wrap_angle(yaw)
-    f[F_AGE, t] = 0.0
-    iv[I_ID, t] = cnt[N_NEXT_ID]
-    iv[I_HITS, t] = 0
-    cnt[N_NEXT_ID] += 1
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _update(x, P, zx, zy, std, scratch):
-    """Kalman update with a position measurement of isotropic std; P stays symmetric."""
-    r2 = max(std * std, _MIN_VAR)
-    sxx, syy, sxy = P[0, 0] + r2, P[1, 1] + r2, P[0, 1]
-    det = sxx * syy - sxy * sxy
-    ixx, ixy, iyy = syy / det, -sxy / det, sxx / det  # S^-1
-    ex, ey = zx - x[0], zy - x[1]
-    kx, ky = scratch[0], scratch[1]  # gain K = P H^T S^-1, two columns
-    ph0, ph1 = scratch[2], scratch[3]  # H P, two rows, read before P changes
-    for i in range(4):
-        kx[i] = P[i, 0] * ixx + P[i, 1] * ixy
-        ky[i] = P[i, 0] * ixy + P[i, 1] * iyy
-        ph0[i], ph1[i] = P[0, i], P[1, i]
-    for i in range(4):
-        x[i] += kx[i] * ex + ky[i] * ey
-        for j in range(4):
-            P[i, j] -= kx[i] * ph0[j] + ky[i] * ph1[j]
-    for i in range(4):
-        for j in range(i + 1, 4):
-            P[i, j] = P[j, i] = 0.5 * (P[i, j] + P[j, i])
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _confirm(x, f, iv, cfg, cnt):
-    """Count the confirmed tracks; turn the fast confirmed ones to face their velocity."""
-    visible = 0
-    v2 = cfg[C_HEADING] * cfg[C_HEADING]
-    for t in range(cnt[N_LIVE]):
-        if iv[I_HITS, t] >= cfg[C_HITS]:
-            visible += 1
-            if x[t, 2] * x[t, 2] + x[t, 3] * x[t, 3] > v2:
-                f[F_YAW, t] = math.atan2(x[t, 3], x[t, 2])
-    cnt[N_VISIBLE] = visible
-
-
-_NO_INDEX = np.empty(0, np.int64)
-
-
 def _as_detections(det_xy: Any, det_yaw: Any, det_std: Any) -> tuple[np.ndarray, ...]:
     """Contiguous float64 (D, 2), (D,), (D,) arrays; ``ValueError`` for other shapes."""
     xy = np.ascontiguousarray(det_xy, dtype=np.float64)
@@ -413,10 +184,11 @@ class KalmanTracker:
         self._x, self._P, self._f = np.zeros((cap, 4)), np.zeros((cap, 4, 4)), np.zeros((3, cap))
         self._i, self._wt = np.zeros((3, cap), np.int64), np.zeros((2, cap), np.int64)
         self._matched = np.zeros(cap, dtype=np.bool_)
-        self._cnt = np.zeros(4, dtype=np.int64)
+        self._cnt = np.zeros(5, dtype=np.int64)
         self._scratch = np.zeros((4, 4))
-        #: the state arrays (x, P, f, iv, cnt, cfg) for compiled readers; see the layout
-        #: constants of this module
+        self._pairs = np.zeros((2, cap), np.int64)  # solver output: rows, columns
+        #: the state arrays (x, P, f, iv, cnt, cfg) for compiled readers; see
+        #: :mod:`srpb_gym.perception.kalman` for their layout
         self.arrays = (self._x, self._P, self._f, self._i, self._cnt, self._cfg)
         self._reserve(cap)
         views = [a.view() for a in (self._x, self._P, self._f, self._i, self._matched)]
@@ -429,15 +201,14 @@ class KalmanTracker:
         """Size the per-detection workspace for ``detections`` detections."""
         cap = self._x.shape[0]
         self._dcap = detections
-        self._cost = np.zeros((cap, detections))
-        self._wd = np.zeros((3, detections), dtype=np.int64)
-        self._sub = np.zeros(cap * detections)
+        self._state = (self._x, self._P, self._f, self._i, self._matched)
+        self._work = (self._cfg, self._cnt, np.zeros((cap, detections)), self._wt,
+                      np.zeros((3, detections), dtype=np.int64), np.zeros(cap * detections),
+                      self._scratch, self._pairs)  # fmt: skip
 
     def reset(self) -> None:
         """Forget all tracks and restart ids at 0 (a new episode)."""
         self._cnt[:] = 0
-        self._sel: slice | np.ndarray = slice(0, 0)
-        self.last_refused = 0
 
     def step(
         self, dt: float, det_xy: np.ndarray, det_yaw: np.ndarray, det_std: np.ndarray | float
@@ -450,24 +221,25 @@ class KalmanTracker:
         Raises ``ValueError`` for a bad shape or value, leaving the state unchanged.
         """
         xy, yaw, std = _as_detections(det_xy, det_yaw, det_std)
-        D = xy.shape[0]
+        return self.fuse(float(dt), xy, yaw, std, xy.shape[0])
+
+    def fuse(self, dt: float, xy: np.ndarray, yaw: np.ndarray, std: np.ndarray, D: int) -> int:
+        """:meth:`step` on the first ``D`` rows of float64 C-contiguous ``xy`` (>= D, 2),
+        ``yaw`` and ``std`` (>= D,) as they are (a detector's buffers), ``dt`` a float."""
         if self._dcap < D:
             self._reserve(max(D, 2 * self._dcap))
-        state = (self._x, self._P, self._f, self._i, self._matched)
-        work = (self._cfg, self._cnt, self._cost, self._wt, self._wd)
-        code, rows, cols = _predict_and_gate(float(dt), *state, xy, yaw, std, *work, self._sub)
-        if code:
-            raise ValueError(_ERRORS[code])
-        ri = ci = _NO_INDEX
-        if rows:
-            ri, ci = linear_sum_assignment(self._sub[: rows * cols].reshape(rows, cols))
-        self.last_refused = _update_and_spawn(*state, xy, yaw, std, *work, ri, ci, self._scratch)
-        n, visible = int(self._cnt[N_LIVE]), int(self._cnt[N_VISIBLE])
-        if visible == n:
-            self._sel = slice(0, n)
-        else:
-            self._sel = np.flatnonzero(self._i[I_HITS, :n] >= self.config.min_hits)
-        return visible
+        k = fuse(dt, *self._state, xy, yaw, std, D, *self._work)
+        if k < 0:
+            raise ValueError(_ERRORS[-k])
+        return k
+
+    @property
+    def _sel(self) -> slice | np.ndarray:
+        """The reported (confirmed) tracks among the live ones."""
+        n = self._cnt[N_LIVE]
+        if self._cnt[N_VISIBLE] == n:
+            return slice(0, n)
+        return np.flatnonzero(self._i[I_HITS, :n] >= self.config.min_hits)
 
     def __len__(self) -> int:
         """Number of reported tracks."""
@@ -478,6 +250,10 @@ class KalmanTracker:
     refused = property(
         lambda self: int(self._cnt[N_REFUSED]),
         doc="Detections that started no track (capacity full) this episode.",
+    )
+    last_refused = property(
+        lambda self: int(self._cnt[N_LAST_REFUSED]),
+        doc="Detections that started no track (capacity full) in the last step.",
     )
 
     # The reported tracks, K rows each, in creation order (see :class:`Tracks`).
@@ -494,7 +270,8 @@ class KalmanTracker:
 
     def tracks(self) -> Tracks:
         """All reported per-track arrays at once."""
+        s, x, f, i = self._sel, self._ro_x, self._ro_f, self._ro_i
         return Tracks(
-            self.ids, self.xy, self.velocity, self.yaw, self.covariance, self.age,
-            self.time_since_update, self.matched, self.detection,
+            i[I_ID, s], x[s, :2], x[s, 2:], f[F_YAW, s], self._ro_P[s, :2, :2], f[F_AGE, s],
+            f[F_TSU, s], self._ro_matched[s], i[I_DET, s],
         )  # fmt: skip

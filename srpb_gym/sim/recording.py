@@ -4,7 +4,8 @@
 tracked record) and with all people as they are (the ground-truth record), straight into
 the tables of two :class:`~srpb_gym.metrics.record.EpisodeRecord` objects, with the
 F-formations seen in each. It reads the tracker's state arrays
-(:attr:`~srpb_gym.perception.tracker.KalmanTracker.arrays`) and the detector's true person
+(:attr:`~srpb_gym.perception.tracker.KalmanTracker.arrays`, laid out as
+:mod:`srpb_gym.perception.kalman` says) and the detector's true person
 index of each detection, and remembers which true person each reported track followed
 (``track_person``, for the groups the robot sees).
 """
@@ -26,7 +27,7 @@ from srpb_gym.metrics.record import (
     SAMPLES,
 )
 from srpb_gym.perception.groups import seen_groups
-from srpb_gym.perception.tracker import C_HITS, F_YAW, I_DET, I_HITS, I_ID, N_LIVE
+from srpb_gym.perception.kalman import C_HITS, F_YAW, I_DET, I_HITS, I_ID, N_LIVE
 
 OK, GROW_TRACK_PERSON, GROW_TRACKED, GROW_TRUTH = range(4)  # return codes of record_sample
 MIN_GROUP = 2  # tracked members a formation needs to be reported as a group
