@@ -161,7 +161,7 @@ class SRPBNavEnv(gym.Env):
                              f"{render_mode!r}", key="render_mode")  # fmt: skip
         self.render_mode = render_mode
         robot_cfg = RobotConfig.from_spec(robot)
-        self.scenario = load_scenario(scenario)
+        self.scenario = load_scenario(scenario, robot_radius=robot_cfg.radius)
         self.sim = _build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
         self.task: RobotTask = build_task(
             self.sim, 0, self.scenario.robot.goal_tolerance, observation, reward,

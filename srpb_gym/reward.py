@@ -32,14 +32,15 @@ from typing import Any
 
 import numpy as np
 import yaml
+from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
 from srpb_gym.errors import InputError
 from srpb_gym.metrics import kernels
-from srpb_gym.metrics.episode import entity_values
+from srpb_gym.metrics.episode import TAUBIN_MIN_MEMBERS, group_values
 from srpb_gym.metrics.params import MetricParams
-from srpb_gym.metrics.record import EpisodeRecord, R
+from srpb_gym.metrics.record import EpisodeRecord
 
 TASK_TERMS: tuple[str, ...] = ("progress", "success", "collision", "time")
 SRPB_TERMS: tuple[str, ...] = (
@@ -100,17 +101,20 @@ class RewardFunction:
         self.weights = np.asarray(weights, dtype=np.float64)
         self.params, self.reference = params, semantics == "reference"
         p = params
-        self._flag_args = (
+        self._params = np.array([
             p.osc_vel_lin_x_threshold, p.osc_vel_x_threshold, p.osc_vel_y_threshold,
-            p.osc_vel_ang_z_threshold, p.stop_speed_tolerance, self.reference,
-        )  # fmt: skip
-        self._flags = [np.zeros(1, dtype=np.bool_) for _ in range(3)]
+            p.osc_vel_ang_z_threshold, p.stop_speed_tolerance, p.person_fov,
+            p.robot_max_speed, p.robot_circumradius, p.person_occupancy_radius,
+            p.safety_distance,
+        ])  # fmt: skip
         self.values = np.zeros(len(TERMS))  # unweighted term values of the last step
         self.weighted = np.zeros(len(TERMS))
+        self._prev, self._new = np.zeros(SAMPLE), np.zeros(SAMPLE)
+        self._taubin_size = TAUBIN_MIN_MEMBERS[semantics == "reference"]
 
     def reset(self, record: EpisodeRecord, goal_distance: float) -> None:
         """Start an episode at the record's first sample."""
-        self._sample = self._sample_values(record)
+        self._sample_values(record, self._prev)
         self._goal_distance = goal_distance
         self.values[:] = 0.0
         self.weighted[:] = 0.0
@@ -119,42 +123,103 @@ class RewardFunction:
         self, record: EpisodeRecord, goal_distance: float, success: bool, collision: bool
     ) -> float:
         """Term values of the step that appended the record's last sample; the reward."""
-        v, prev, new = self.values, self._sample, self._sample_values(record)
-        dt = new[0] - prev[0]
-        v[_T["progress"]] = self._goal_distance - goal_distance
-        v[_T["success"]], v[_T["collision"]] = float(success), float(collision)
-        v[_T["time"]] = dt
-        v[_T["obs"]] = dt * (prev[1] < self.params.safety_distance)
-        v[_T["osc"]], v[_T["bwd"]], v[_T["iprot"]] = dt * prev[2], dt * prev[3], dt * prev[4]
-        dvx, dvy, dw = new[5] - prev[5], new[6] - prev[6], new[7] - prev[7]
-        moving = dt > 0  # a zero-length step adds nothing (paper semantics)
-        v[_T["vsm"]] = math.hypot(abs(dvx) / dt, abs(dvy) / dt) if moving else 0.0
-        v[_T["hsm"]] = abs(dw) / dt if moving else 0.0
-        v[_T["chc"]] = abs(wrap_angle(new[8] - prev[8]))
-        v[_T["psi"]], v[_T["fsi"]], v[_T["dir"]] = dt * prev[9], dt * prev[10], dt * prev[11]
-        self._sample, self._goal_distance = new, goal_distance
-        np.multiply(v, self.weights, out=self.weighted)
-        return float(self.weighted.sum())
+        prev, new = self._prev, self._new
+        self._sample_values(record, new)
+        reward = _step_terms(prev, new, self._goal_distance - goal_distance, float(success),
+                             float(collision), self._params[9], self.weights, self.values,
+                             self.weighted)  # fmt: skip
+        self._prev, self._new = new, prev
+        self._goal_distance = goal_distance
+        return reward
 
-    def _sample_values(self, record: EpisodeRecord) -> tuple[float, ...]:
-        """(t, obstacle distance, osc, bwd, iprot, vx, vy, omega, yaw, max psi, max fsi,
-        max dir) of the record's last sample; maxima are 0 when nobody is there."""
+    def _sample_values(self, record: EpisodeRecord, out: NDArray[np.float64]) -> None:
+        """Write the per-sample values (:data:`SAMPLE`) of the record's last sample."""
         robot, people, _, sizes, members = record.latest()
-        row = robot[0]
-        vx, vy, w = robot[:, R["vx"]], robot[:, R["vy"]], robot[:, R["omega"]]
-        kernels.motion_flags(vx, vy, w, *self._flag_args, *self._flags)
-        zeros = np.zeros(people.shape[0], dtype=np.int64)
-        g = sizes.shape[0]
-        psi, dirv, fsi, _, _ = entity_values(
-            robot, people, zeros, np.zeros(g, dtype=np.int64), members,
-            np.cumsum(sizes) - sizes, sizes, self.params, self.reference,
-        )  # fmt: skip
-        return (
-            row[R["t"]], row[R["obstacle_dist"]], float(self._flags[0][0]),
-            float(self._flags[1][0]), float(self._flags[2][0]), row[R["vx"]], row[R["vy"]],
-            row[R["omega"]], row[R["yaw"]], _max(psi), _max(fsi), _max(dirv),
-        )  # fmt: skip
+        _sample_terms(robot[0], people, self._params, self.reference, out)
+        if sizes.shape[0] == 0:
+            return
+        if sizes.max() < self._taubin_size:  # every O-space is the fallback ellipse
+            out[_S_FSI] = _fallback_fsi(robot[0], people, members, sizes,
+                                        self.params.person_occupancy_radius,
+                                        self.reference)  # fmt: skip
+            return
+        g = sizes.shape[0]  # Taubin's fit: the metric code's own group path
+        fsi = group_values(robot, people, np.zeros(g, dtype=np.int64), members,
+                           np.cumsum(sizes) - sizes, sizes, self.params,
+                           self.reference)  # fmt: skip
+        out[_S_FSI] = fsi.max()
 
 
-def _max(values: NDArray[np.float64]) -> float:
-    return float(values.max()) if values.size else 0.0
+#: per-sample values: t, obstacle distance, osc, bwd, iprot, vx, vy, omega, yaw, and the
+#: largest psi, fsi and dir over the people (groups) of the sample (0 when nobody is there)
+SAMPLE = 12
+_S_FSI = 10
+
+
+@njit(cache=True, error_model="numpy")
+def _sample_terms(row, people, prm, reference, out):  # pragma: no cover - compiled
+    """Fill ``out`` (:data:`SAMPLE`) from one robot row and its people rows (fsi left 0)."""
+    t, x, y, yaw, vx, vy, w = row[0], row[1], row[2], row[3], row[4], row[5], row[6]
+    osc, bwd, iprot = kernels.motion_predicates(vx, vy, w, prm[0], prm[1], prm[2], prm[3],
+                                                prm[4], reference)  # fmt: skip
+    psi_max, dir_max = 0.0, 0.0
+    speed = math.hypot(vx, vy)
+    for i in range(people.shape[0]):
+        p = people[i]
+        psi, dirv = kernels.person_pair(x, y, yaw, speed, p[0], p[1], p[2], p[7], p[8], p[3],
+                                        p[4], p[5], p[6], prm[5], prm[6], prm[7], prm[8],
+                                        reference)  # fmt: skip
+        if i == 0 or psi > psi_max:
+            psi_max = psi
+        if i == 0 or dirv > dir_max:
+            dir_max = dirv
+    out[0], out[1] = t, row[10]
+    out[2], out[3], out[4] = 1.0 if osc else 0.0, 1.0 if bwd else 0.0, 1.0 if iprot else 0.0
+    out[5], out[6], out[7], out[8] = vx, vy, w, yaw
+    out[9], out[10], out[11] = psi_max, 0.0, dir_max
+
+
+@njit(cache=True, error_model="numpy")
+def _fallback_fsi(row, people, members, size, occupancy, reference):  # pragma: no cover
+    """The largest fsi of one sample's groups when every O-space is the fallback ellipse
+    (the kernels of :func:`srpb_gym.metrics.episode.entity_values`)."""
+    g = size.shape[0]
+    start = np.empty(g, dtype=np.int64)
+    acc = 0
+    for k in range(g):
+        start[k] = acc
+        acc += size[k]
+    px, py = people[:, 0].copy(), people[:, 1].copy()
+    cxx, cxy, cyx, cyy = (people[:, 3].copy(), people[:, 4].copy(), people[:, 5].copy(),
+                          people[:, 6].copy())  # fmt: skip
+    taubin = np.zeros(g, dtype=np.bool_)
+    cx, cy, a, b, theta = np.empty(g), np.empty(g), np.empty(g), np.empty(g), np.empty(g)
+    kernels.fallback_ellipses(px, py, members, start, size, occupancy, reference, taubin, cx, cy,
+                              a, b, theta)  # fmt: skip
+    sxx, sxy, syy, fsi = np.empty(g), np.empty(g), np.empty(g), np.empty(g)
+    kernels.group_covariances(cxx, cxy, cyx, cyy, members, start, size, reference, sxx, sxy,
+                              syy)  # fmt: skip
+    rx, ry = np.full(1, row[1]), np.full(1, row[2])
+    kernels.group_terms(rx, ry, np.zeros(g, dtype=np.int64), cx, cy, a, b, theta, sxx, sxy, syy,
+                        fsi)  # fmt: skip
+    return fsi.max()
+
+
+@njit(cache=True, error_model="numpy")
+def _step_terms(prev, new, progress, success, collision, safety, weights, v, weighted):
+    """Term values (:data:`TERMS` order) of the step from sample ``prev`` to ``new``;
+    writes ``v`` and ``weighted``, returns the reward."""  # pragma: no cover - compiled
+    dt = new[0] - prev[0]
+    v[0], v[1], v[2], v[3] = progress, success, collision, dt
+    v[4] = dt if prev[1] < safety else 0.0
+    moving = dt > 0  # a zero-length step adds nothing (paper semantics)
+    v[5] = math.hypot(abs(new[5] - prev[5]) / dt, abs(new[6] - prev[6]) / dt) if moving else 0.0
+    v[6] = abs(new[7] - prev[7]) / dt if moving else 0.0
+    v[7], v[8], v[9] = dt * prev[2], dt * prev[3], dt * prev[4]
+    v[10] = abs(wrap_angle(new[8] - prev[8]))
+    v[11], v[12], v[13] = dt * prev[9], dt * prev[10], dt * prev[11]
+    total = 0.0
+    for k in range(v.shape[0]):
+        weighted[k] = v[k] * weights[k]
+        total += weighted[k]
+    return total

@@ -302,3 +302,33 @@ def test_no_warnings_on_a_plain_episode():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         drive(env, 0, lambda k: np.array([1.0, 0.0], np.float32))
+
+
+@pytest.mark.parametrize("semantics", ["paper", "reference"])
+def test_o_space_term_equals_the_metric_code(semantics):
+    """fsi per step (fallback ellipses in a compiled path, Taubin's fit in the metric
+    code's) equals dt x the largest per-group value of the episode evaluation."""
+    env = gym.make(
+        "SRPB-FFormation-v0",
+        metrics={"semantics": semantics},
+        max_episode_steps=400,
+        sensors={"detector": "lidar"},
+    )  # sees all around: the pair stays tracked
+    base = env.unwrapped
+    env.reset(seed=0, options={"start": (6.0, 2.4, 0.0)})  # facing the pair, 2.6 m away
+    infos = []
+    for _ in range(400):
+        *_, terminated, truncated, info = env.step(np.array([0.4, 0.0], np.float32))
+        infos.append(info)
+        if terminated or truncated:
+            break
+    rec = base.task.record
+    ev = evaluate_detailed(rec, semantics, base.params)
+    t = rec.robot_col("t")
+    nonzero = 0
+    for k, info in enumerate(infos):
+        fsi = ev.fsi[rec.group_sample == k]
+        expected = (t[k + 1] - t[k]) * (fsi.max() if fsi.size else 0.0)
+        assert info["srpb_step/fsi"] == pytest.approx(expected, rel=1e-12, abs=1e-15), k
+        nonzero += expected > 1e-6
+    assert nonzero > 5  # the robot drove into the O-space

@@ -263,16 +263,46 @@ def entity_values(
     )  # fmt: skip
     if g == 0:
         return psi, dirv, fsi, *no_groups
-    ellipses, taubin = group_ellipses(
-        px, py, group_members, group_start, group_size, params, reference
-    )
+    ellipses, taubin = _group_terms(
+        rx, ry, px, py, cxx, cxy, cyx, cyy, group_sample, group_members, group_start,
+        group_size, params, reference, fsi,
+    )  # fmt: skip
+    return psi, dirv, fsi, ellipses, taubin
+
+
+def group_values(
+    robot: NDArray[np.float64],
+    people: NDArray[np.float64],
+    group_sample: NDArray[np.int64],
+    group_members: NDArray[np.int64],
+    group_start: NDArray[np.int64],
+    group_size: NDArray[np.int64],
+    params: MetricParams,
+    reference: bool,
+) -> NDArray[np.float64]:
+    """fsi of every group row (tables as in :func:`entity_values`, at least one group)."""
+    _, rx, ry = np.ascontiguousarray(robot[:, :3].T)
+    px, py, _, cxx, cxy, cyx, cyy = np.ascontiguousarray(people[:, :7].T)
+    fsi = np.empty(group_sample.shape[0])
+    _group_terms(rx, ry, px, py, cxx, cxy, cyx, cyy, group_sample, group_members, group_start,
+                 group_size, params, reference, fsi)  # fmt: skip
+    return fsi
+
+
+def _group_terms(rx, ry, px, py, cxx, cxy, cyx, cyy, group_sample, members, start, size,
+                 params, reference, fsi):  # fmt: skip
+    ellipses, taubin = group_ellipses(px, py, members, start, size, params, reference)
+    g = size.shape[0]
     sxx, sxy, syy = np.empty(g), np.empty(g), np.empty(g)
-    kernels.group_covariances(
-        cxx, cxy, cyx, cyy, group_members, group_start, group_size, reference, sxx, sxy, syy
-    )
+    kernels.group_covariances(cxx, cxy, cyx, cyy, members, start, size, reference, sxx, sxy,
+                              syy)  # fmt: skip
     e = np.ascontiguousarray(ellipses.T)
     kernels.group_terms(rx, ry, group_sample, e[0], e[1], e[2], e[3], e[4], sxx, sxy, syy, fsi)
-    return psi, dirv, fsi, ellipses, taubin
+    return ellipses, taubin
+
+
+#: the smallest group fit with Taubin's method, by semantics (paper, reference)
+TAUBIN_MIN_MEMBERS = (5, 2)
 
 
 def group_ellipses(
@@ -281,7 +311,7 @@ def group_ellipses(
     """O-space ellipse of every group row: Taubin's fit where it applies and is accepted
     (``paper``: 5 or more members; ``reference``: 2 or more), else the fallback."""
     out = np.empty((size.shape[0], 5))
-    taubin = size >= (2 if reference else 5)
+    taubin = size >= TAUBIN_MIN_MEMBERS[reference]
     rows = np.flatnonzero(taubin)
     if rows.size:
         fits = taubin_fit(px, py, members, start[rows], size[rows])

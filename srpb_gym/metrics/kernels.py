@@ -48,52 +48,64 @@ def person_terms(
     Row i pairs person i with robot sample ``sample[i]``. ``rob_speed`` is the robot's
     linear speed hypot(vx, vy) [m/s]. Writes ``psi_out[i]`` and ``dir_out[i]``.
     """
+    for i in range(px.shape[0]):
+        n = sample[i]
+        psi_out[i], dir_out[i] = person_pair(
+            rob_x[n], rob_y[n], rob_yaw[n], rob_speed[n], px[i], py[i], pyaw[i], pvx[i],
+            pvy[i], cxx[i], cxy[i], cyx[i], cyy[i], person_fov, robot_max_speed,
+            robot_circumradius, occupancy_radius, reference,
+        )  # fmt: skip
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def person_pair(
+    rx, ry, ryaw, rspeed, hx, hy, hyaw, pvx, pvy, cxx, cxy, cyx, cyy,
+    person_fov, robot_max_speed, robot_circumradius, occupancy_radius, reference,
+):  # fmt: skip
+    """(psi, dir) of one person for one robot state (see :func:`person_terms`)."""
     sigma_fov = person_fov / 4.0
     dist_scale = robot_circumradius + occupancy_radius
     ocp_var = (0.5 * occupancy_radius) ** 2
-    for i in range(px.shape[0]):
-        n = sample[i]
-        rx, ry, ryaw = rob_x[n], rob_y[n], rob_yaw[n]
-        hx, hy, hyaw = px[i], py[i], pyaw[i]
-        c_off = 0.5 * (cxy[i] + cyx[i])
-        # --- personal space: Kirby's asymmetric Gaussian plus the tracking covariance
-        dx, dy = rx - hx, ry - hy
-        speed = math.hypot(pvx[i], pvy[i])
-        var_front = max(2.0 * speed, 0.5)
-        var_side = var_front * 2.0 / 3.0
-        delta = wrap_angle(math.atan2(dy, dx) - hyaw)
-        front = delta <= 0.5 * PI if reference else abs(delta) <= 0.5 * PI
-        var_head = var_front if front else 0.5 * var_front
-        ch, sh = math.cos(hyaw), math.sin(hyaw)
-        rot_off = ch * sh * (var_head - var_side)
-        sxx = ch * ch * var_head + sh * sh * var_side + cxx[i]
-        syy = sh * sh * var_head + ch * ch * var_side + cyy[i]
-        if reference:
-            psi_out[i] = gauss(dx, dy, sxx, rot_off + cxy[i], rot_off + cyx[i], syy)
-        else:
-            psi_out[i] = gauss(dx, dy, sxx, rot_off + c_off, rot_off + c_off, syy)
-        # --- heading straight into the person
-        ex, ey = hx - rx, hy - ry
-        d = math.hypot(ex, ey)
-        phi = math.atan2(ey, ex)
-        hcos, hsin = math.cos(ryaw), math.sin(ryaw)
-        along = hcos * math.cos(phi) + hsin * math.sin(phi)
-        direction = 0.0
-        if along != 0.0:
-            t = d / along  # robot -> intersection with the person's perpendicular line
-            if (reference and abs(t) <= REFERENCE_DIR_SEARCH) or (not reference and t > 0.0):
-                ix = rx + t * hcos - hx
-                iy = ry + t * hsin - hy
-                off = cxy[i] if reference else c_off
-                direction = gauss(ix, iy, ocp_var + cxx[i], off, off, ocp_var + cyy[i])
-        fov = math.exp(-(delta * delta) / (2.0 * sigma_fov * sigma_fov))
-        speed_factor = rob_speed[n] / robot_max_speed
-        if reference:
-            dir_out[i] = direction * fov * speed_factor / (d / dist_scale)
-        elif d == 0.0:
-            dir_out[i] = 1.0
-        else:
-            dir_out[i] = min(1.0, direction * fov * speed_factor / (d / dist_scale))
+    c_off = 0.5 * (cxy + cyx)
+    # --- personal space: Kirby's asymmetric Gaussian plus the tracking covariance
+    dx, dy = rx - hx, ry - hy
+    speed = math.hypot(pvx, pvy)
+    var_front = max(2.0 * speed, 0.5)
+    var_side = var_front * 2.0 / 3.0
+    delta = wrap_angle(math.atan2(dy, dx) - hyaw)
+    front = delta <= 0.5 * PI if reference else abs(delta) <= 0.5 * PI
+    var_head = var_front if front else 0.5 * var_front
+    ch, sh = math.cos(hyaw), math.sin(hyaw)
+    rot_off = ch * sh * (var_head - var_side)
+    sxx = ch * ch * var_head + sh * sh * var_side + cxx
+    syy = sh * sh * var_head + ch * ch * var_side + cyy
+    if reference:
+        psi = gauss(dx, dy, sxx, rot_off + cxy, rot_off + cyx, syy)
+    else:
+        psi = gauss(dx, dy, sxx, rot_off + c_off, rot_off + c_off, syy)
+    # --- heading straight into the person
+    ex, ey = hx - rx, hy - ry
+    d = math.hypot(ex, ey)
+    phi = math.atan2(ey, ex)
+    hcos, hsin = math.cos(ryaw), math.sin(ryaw)
+    along = hcos * math.cos(phi) + hsin * math.sin(phi)
+    direction = 0.0
+    if along != 0.0:
+        t = d / along  # robot -> intersection with the person's perpendicular line
+        if (reference and abs(t) <= REFERENCE_DIR_SEARCH) or (not reference and t > 0.0):
+            ix = rx + t * hcos - hx
+            iy = ry + t * hsin - hy
+            off = cxy if reference else c_off
+            direction = gauss(ix, iy, ocp_var + cxx, off, off, ocp_var + cyy)
+    fov = math.exp(-(delta * delta) / (2.0 * sigma_fov * sigma_fov))
+    speed_factor = rspeed / robot_max_speed
+    if reference:
+        dirv = direction * fov * speed_factor / (d / dist_scale)
+    elif d == 0.0:
+        dirv = 1.0
+    else:
+        dirv = min(1.0, direction * fov * speed_factor / (d / dist_scale))
+    return psi, dirv
 
 
 @njit(cache=True, error_model="numpy")
@@ -193,15 +205,24 @@ def motion_flags(
 ):
     """Per-sample predicates: oscillating, moving backward, rotating in place."""
     for n in range(vx.shape[0]):
-        avx, avy, aw = abs(vx[n]), abs(vy[n]), abs(omega[n])
-        lin = math.hypot(vx[n], vy[n])
-        if reference:
-            osc_out[n] = lin < lin_thr and avx < x_thr and avx < y_thr and aw < ang_thr
-            bwd_out[n] = vx[n] < -abs(x_thr)
-        else:
-            osc_out[n] = lin < lin_thr and avx < x_thr and avy < y_thr and aw < ang_thr
-            bwd_out[n] = vx[n] <= -x_thr
-        iprot_out[n] = avx < stop_tol and avy < stop_tol and aw >= ang_thr
+        osc_out[n], bwd_out[n], iprot_out[n] = motion_predicates(
+            vx[n], vy[n], omega[n], lin_thr, x_thr, y_thr, ang_thr, stop_tol, reference
+        )
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def motion_predicates(vx, vy, omega, lin_thr, x_thr, y_thr, ang_thr, stop_tol, reference):
+    """(oscillating, moving backward, rotating in place) of one velocity (vx, vy, omega)."""
+    avx, avy, aw = abs(vx), abs(vy), abs(omega)
+    lin = math.hypot(vx, vy)
+    if reference:
+        osc = lin < lin_thr and avx < x_thr and avx < y_thr and aw < ang_thr
+        bwd = vx < -abs(x_thr)
+    else:
+        osc = lin < lin_thr and avx < x_thr and avy < y_thr and aw < ang_thr
+        bwd = vx <= -x_thr
+    iprot = avx < stop_tol and avy < stop_tol and aw >= ang_thr
+    return osc, bwd, iprot
 
 
 @njit(cache=True, error_model="numpy")
