@@ -4,7 +4,8 @@ Usage::
 
     srpb-gym metrics ROBOT_LOG [PEOPLE_LOG [GROUPS_LOG]] [--semantics S] [--preset P]
                      [--param NAME=VALUE ...] [--json]
-    srpb-gym eval [--env ID ...] [--planner NAME ...] [--policy PATH ...] [--episodes N]
+    srpb-gym eval [--env ID ...] [--planner NAME ...] [--planner-config FILE]
+                  [--planner-param NAME.FIELD=VALUE ...] [--policy PATH ...] [--episodes N]
                   [--seed S] [--out DIR] [--workers N] [--video [K]] [--semantics S]
                   [--preset P]
     srpb-gym compare DIR [DIR ...] [--out DIR]
@@ -180,6 +181,13 @@ def add_eval_command(subparsers: Any) -> None:
     many = {"action": "extend", "nargs": "+"}
     p.add_argument("--env", metavar="ID", **many, help="environment id(s)")
     p.add_argument("--planner", metavar="NAME", **many, help="registered planner(s)")
+    p.add_argument("--planner-config", metavar="FILE",
+                   help="YAML file of planner settings: {NAME: {FIELD: VALUE}}, nested "
+                        "configs as nested mappings (see docs/planners.md)")  # fmt: skip
+    p.add_argument("--planner-param", metavar="NAME.FIELD=VALUE", action="append", default=[],
+                   help="set one planner setting, e.g. dwa.horizon=2.5 or "
+                        "dwa.global_planner.spacing=0.2 (repeatable; applied over "
+                        "--planner-config)")  # fmt: skip
     p.add_argument("--policy", metavar="PATH", **many, default=[],
                    help="stable-baselines3 model .zip file(s), named after the file")  # fmt: skip
     p.add_argument("--policy-algo", default="PPO", metavar="ALGO",
@@ -201,6 +209,7 @@ def add_eval_command(subparsers: Any) -> None:
 def run_eval(args: argparse.Namespace) -> int:
     """Run the evaluation described by ``args``; 130 when interrupted."""
     from srpb_gym.evaluation import resolve_config, run_evaluation
+    from srpb_gym.planners.config import planner_settings
 
     if args.video:
         from srpb_gym.evaluation.figures import video_support
@@ -212,6 +221,7 @@ def run_eval(args: argparse.Namespace) -> int:
         args.env, args.planner, args.policy, policy_algo=args.policy_algo,
         episodes=args.episodes, seed=args.seed, out=args.out, workers=args.workers,
         video=args.video, semantics=args.semantics, preset=args.preset,
+        planner_settings=planner_settings(args.planner_config, args.planner_param),
         argv=getattr(args, "argv", ()),
     )  # fmt: skip
     try:

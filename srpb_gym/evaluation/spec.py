@@ -21,7 +21,7 @@ import numpy as np
 
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
-from srpb_gym.planners import PLANNERS, Planner, make_planner
+from srpb_gym.planners import PLANNERS, Planner, check_settings, make_planner, planner_config
 from srpb_gym.registration import SCENARIO_IDS
 
 DEFAULT_ENVS: tuple[str, ...] = ("SRPB-Corridor-v0",)
@@ -30,12 +30,14 @@ DEFAULT_EPISODES = 5
 
 @dataclass(frozen=True)
 class PlannerSpec:
-    """A planner to evaluate: a registered one (``planner`` + ``kwargs``) or a learned
-    policy file (``policy``, ``algo``, ``vecnormalize``); ``name`` labels its results."""
+    """A planner to evaluate: a registered one (``planner`` with the settings ``config``,
+    plain data: the fields to change, see :func:`srpb_gym.planners.make_planner`) or a
+    learned policy file (``policy``, ``algo``, ``vecnormalize``); ``name`` labels its
+    results."""
 
     name: str
     planner: str | None = None
-    kwargs: Mapping[str, Any] = field(default_factory=dict)
+    config: Mapping[str, Any] = field(default_factory=dict)
     policy: str | None = None
     algo: str = "PPO"
     vecnormalize: str | None = None
@@ -43,20 +45,21 @@ class PlannerSpec:
     def build(self) -> Planner:
         """A fresh planner instance."""
         if self.policy is None:
-            return make_planner(str(self.planner), **dict(self.kwargs))
+            return make_planner(str(self.planner), dict(self.config) or None)
         from srpb_gym.planners.learned import LearnedPolicy
 
         return LearnedPolicy(self.policy, self.algo, self.vecnormalize)
 
     def describe(self, planner: Planner | None = None) -> dict[str, Any]:
-        """Plain-data description for ``config.json``: class and every parameter."""
+        """Plain-data description for ``config.json``: the class, the settings given
+        (``config``, registered planners) and every resolved parameter (``params``)."""
         planner = planner if planner is not None else self.build()
         cls = type(planner)
         out: dict[str, Any] = {"name": self.name, "class": f"{cls.__module__}.{cls.__qualname__}"}
         if self.policy is not None:
             out |= {"policy": self.policy, "algo": self.algo, "vecnormalize": self.vecnormalize}
         else:
-            out["planner"] = self.planner
+            out |= {"planner": self.planner, "config": jsonable(self.config)}
         out["params"] = planner_params(planner)
         return out
 
@@ -114,10 +117,17 @@ def resolve_config(
     video: int = 0,
     semantics: str = "paper",
     preset: str = "paper",
+    planner_settings: Mapping[str, Mapping[str, Any]] | None = None,
     argv: Sequence[str] = (),
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
-    planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``."""
+    planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
+
+    ``planner_settings``: ``{planner name: settings}`` (plain data, e.g. from
+    :func:`srpb_gym.planners.config.planner_settings`); every name must be a registered
+    planner, and the settings of the planners evaluated are checked now (errors name
+    ``planner.<name>.<field>``); those of planners not evaluated are left out.
+    """
     _check_counts(episodes, workers, video)
     if seed < 0:
         raise InputError(f"must be at least 0, got {seed}", key="--seed")
@@ -132,7 +142,8 @@ def resolve_config(
                              f"{', '.join(SCENARIO_IDS)}", key="--env")  # fmt: skip
     if planners is None and not policies:
         planners = list(PLANNERS)
-    specs = [_planner_spec(name) for name in _unique(planners or ())]
+    settings = check_settings(planner_settings or {})
+    specs = [_planner_spec(name, settings.get(name)) for name in _unique(planners or ())]
     specs += _policy_specs(policies, policy_algo, env_ids)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
@@ -156,11 +167,12 @@ def _unique(items: Sequence[str]) -> list[str]:
     return list(dict.fromkeys(items))
 
 
-def _planner_spec(name: str) -> PlannerSpec:
+def _planner_spec(name: str, settings: Mapping[str, Any] | None = None) -> PlannerSpec:
     if name not in PLANNERS:
         raise InputError(f"unknown planner {name!r}; choose one of: {', '.join(PLANNERS)}",
                          key="--planner")  # fmt: skip
-    return PlannerSpec(name=name, planner=name)
+    planner_config(name, settings)  # fail now on a bad setting, not in a worker
+    return PlannerSpec(name=name, planner=name, config=dict(settings or {}))
 
 
 def _policy_specs(paths: Sequence[str], algo: str, env_ids: Sequence[str]) -> list[PlannerSpec]:
@@ -236,7 +248,12 @@ def check_out_dir(out: str) -> str:
 
 
 def planner_params(planner: Planner) -> dict[str, Any]:
-    """The constructor parameters of ``planner`` with the values it holds (plain data)."""
+    """Every setting of ``planner`` as plain data: its resolved ``config`` dataclass, or for
+    a planner without one (a learned policy) its constructor parameters with the values it
+    holds."""
+    config = getattr(planner, "config", None)
+    if dataclasses.is_dataclass(config) and not isinstance(config, type):
+        return jsonable(config)
     out: dict[str, Any] = {}
     for name, p in inspect.signature(type(planner).__init__).parameters.items():
         if name == "self" or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):

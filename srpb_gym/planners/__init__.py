@@ -1,16 +1,26 @@
 """Planners behind one interface: classical baselines that drive the robot from what it
-knows (never the ground truth). ``make_planner("dwa")`` builds one by name."""
+knows (never the ground truth). ``make_planner("dwa", {"horizon": 2.5})`` builds one by
+name from plain-data settings (see :mod:`srpb_gym.planners.config`)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
-from srpb_gym.planners.base import Knowledge, Planner, command_to_action, heading_error
-from srpb_gym.planners.dwa import DWA
-from srpb_gym.planners.global_planner import GlobalPlanner
-from srpb_gym.planners.go_to_goal import GoToGoal
-from srpb_gym.planners.social_dwa import SocialDWA
-from srpb_gym.planners.social_force import SocialForcePlanner
+from srpb_gym.errors import InputError
+from srpb_gym.planners.base import (
+    PERSON_RADIUS,
+    Knowledge,
+    Planner,
+    command_to_action,
+    heading_error,
+)
+from srpb_gym.planners.dwa import DWA, DWAConfig
+from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
+from srpb_gym.planners.go_to_goal import GoToGoal, GoToGoalConfig
+from srpb_gym.planners.recovery import RecoveryConfig
+from srpb_gym.planners.social_dwa import SocialDWA, SocialDWAConfig
+from srpb_gym.planners.social_force import SocialForceConfig, SocialForcePlanner
 
 PLANNERS: dict[str, type[Planner]] = {
     GoToGoal.name: GoToGoal,
@@ -20,13 +30,54 @@ PLANNERS: dict[str, type[Planner]] = {
 }
 
 
-def make_planner(name: str, **kwargs: Any) -> Planner:
-    """A planner by its name (see :data:`PLANNERS`)."""
+def planner_config(name: str, config: Any = None, path: str | None = None) -> Any:
+    """The resolved settings of the planner ``name``: ``config`` (an instance of its config
+    class, a mapping of the fields to change, or ``None``: the defaults) checked and built.
+
+    Raises ``KeyError`` for an unknown planner and :class:`InputError` naming the dotted key
+    under ``path`` (default ``planner.<name>``) for bad settings; ``None`` for a planner
+    without settings.
+    """
     if name not in PLANNERS:
         raise KeyError(f"unknown planner {name!r}; choose one of: {', '.join(sorted(PLANNERS))}")
-    return PLANNERS[name](**kwargs)
+    path = f"planner.{name}" if path is None else path
+    cls = PLANNERS[name].config_class
+    if cls is None:
+        if config is not None and not (isinstance(config, Mapping) and not config):
+            raise InputError(f"planner {name!r} has no settings", key=path)
+        return None
+    return cls.from_spec(config, path)
 
 
-__all__ = ["DWA", "PLANNERS", "GlobalPlanner", "GoToGoal", "Knowledge", "Planner", "SocialDWA",
-           "SocialForcePlanner", "command_to_action", "heading_error",
-           "make_planner"]  # fmt: skip
+def check_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """``settings`` (``{planner name: settings}``) as a dict, after checking that it is a
+    mapping of registered planner names; :class:`InputError` (key ``planner.<name>``)
+    otherwise. The settings themselves are checked when the planner is built."""
+    if not isinstance(settings, Mapping):
+        raise InputError(f"expected a mapping of planner names to settings, got {settings!r}",
+                         key="planner")  # fmt: skip
+    for name in settings:
+        if name not in PLANNERS:
+            raise InputError(f"unknown planner {name!r}; choose one of: "
+                             f"{', '.join(PLANNERS)}", key=f"planner.{name}")  # fmt: skip
+    return dict(settings)
+
+
+def make_planner(name: str, config: Any = None, path: str | None = None) -> Planner:
+    """A planner by its name (see :data:`PLANNERS`) with the settings ``config`` (an
+    instance of its config class, a mapping of the fields to change, e.g.
+    ``{"horizon": 2.5, "global_planner": {"spacing": 0.2}}``, or ``None``: the defaults).
+
+    Raises ``KeyError`` for an unknown name and :class:`InputError` naming the dotted key
+    (``planner.<name>.<field>`` unless ``path`` is given) for bad settings.
+    """
+    resolved = planner_config(name, config, path)
+    cls = PLANNERS[name]
+    return cls() if cls.config_class is None else cls(resolved)  # type: ignore[call-arg]
+
+
+__all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "DWAConfig", "GlobalPlanner",
+           "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge", "Planner",
+           "RecoveryConfig", "SocialDWA", "SocialDWAConfig", "SocialForceConfig",
+           "SocialForcePlanner", "check_settings", "command_to_action", "heading_error",
+           "make_planner", "planner_config"]  # fmt: skip

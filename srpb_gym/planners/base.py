@@ -50,10 +50,20 @@ class Knowledge:
     t: float
 
 
+#: Assumed body radius of a tracked person [m], the default of the planners' settings.
+PERSON_RADIUS = 0.3
+
+
 class Planner(ABC):
-    """A policy for the environment. ``reset`` starts an episode; ``act`` decides a step."""
+    """A policy for the environment. ``reset`` starts an episode; ``act`` decides a step.
+
+    A planner with settings names their frozen dataclass in ``config_class`` and is built
+    as ``Planner(config)`` (an instance, a mapping of the fields to change, or ``None``);
+    it keeps the resolved settings in ``config``.
+    """
 
     name: ClassVar[str] = "planner"
+    config_class: ClassVar[type[Any] | None] = None
 
     def reset(self, knowledge: Knowledge) -> None:  # noqa: B027 - optional hook
         """Start an episode (plan on the static map, clear state)."""
@@ -66,8 +76,10 @@ class Planner(ABC):
 def command_to_action(
     vx: float, vy: float, omega: float, robot: RobotConfig
 ) -> NDArray[np.float32]:
-    """The environment action that requests the body-frame command (vx, vy, omega)."""
-    lin = vx / robot.v_max if vx >= 0 else vx / -robot.v_min
+    """The environment action that requests the body-frame command (vx [m/s], vy [m/s],
+    omega [rad/s]) of ``robot`` (a base that cannot reverse gets 0 for vx < 0)."""
+    reverse = -robot.v_min if robot.v_min < 0 else math.inf
+    lin = vx / robot.v_max if vx >= 0 else vx / reverse
     rot = omega / robot.w_max
     if robot.kinematics == "holonomic":
         side = vy / robot.vy_max if robot.vy_max > 0 else 0.0

@@ -19,16 +19,79 @@ replan).
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.planners.base import Knowledge, Planner, command_to_action
-from srpb_gym.planners.global_planner import GlobalPlanner
-from srpb_gym.planners.recovery import Recovery, goal_turn
+from srpb_gym.planners.base import PERSON_RADIUS, Knowledge, Planner, command_to_action
+from srpb_gym.planners.config import PlannerConfig
+from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
+from srpb_gym.planners.recovery import Recovery, RecoveryConfig, goal_turn
 from srpb_gym.planners.rollout import people_array, rollout, scan_points
+
+#: A recovery gives way to the trajectory choice when a person would walk into the robot
+#: standing still within this time [s].
+THREAT_HORIZON = 1.5
+
+
+@dataclass(frozen=True)
+class DWAConfig(PlannerConfig):
+    """Settings of the :class:`DWA` (lengths in m, times in s, speeds in m/s, angles in
+    rad). The robot's radius, bumper, velocity and acceleration limits come from its
+    :class:`~srpb_gym.sim.robot.RobotConfig` (the planner's ``Knowledge``)."""
+
+    # sampling
+    n_v: int = 11  # linear velocity targets in [0, v_max] (and v_min, as a last resort)
+    n_w: int = 21  # angular velocity targets in [-w_max, w_max]
+    horizon: float = 2.0  # s, each sample is rolled out this long ...
+    sim_dt: float = 0.1  # s, ... in steps of this
+    candidates: int = 80  # social costs of this many admissible samples of lowest cost
+    # safety
+    safety_margin: float = 0.05  # m, beyond the robot's radius plus bumper: walls, points
+    person_radius: float = PERSON_RADIUS  # m, assumed body radius of a tracked person
+    person_margin: float = 0.1  # m, beyond the two radii: inadmissible near a person ...
+    people_horizon: float = 1.2  # s, ... predicted at constant velocity this far ahead
+    people_lookahead: float = 3.5  # s, the people cost looks this far (robot stopped after)
+    standing_speed: float = 0.15  # m/s, slower people are predicted standing still
+    people_range: float = 6.0  # m, farther people are ignored
+    # critics: the cost of a sample is their weighted sum
+    w_path: float = 3.0  # 1/m, end point's distance to the path
+    w_progress: float = 2.0  # 1/m, arc length gained along the path (subtracted)
+    w_heading: float = 0.6  # 1/rad, end heading's error to the path point ``lookahead`` on
+    lookahead: float = 0.8  # m
+    w_goal: float = 2.0  # 1/m, end point's distance to the goal when within reach
+    w_clear: float = 0.5  # obstacle cost exp(-(clearance - safe) / clear_scale)
+    clear_scale: float = 0.15  # m
+    w_people: float = 1.0  # people cost exp(-gap / people_scale), gap >= -0.5 m
+    people_scale: float = 0.45  # m
+    w_speed: float = 0.2  # (1 - v / v_max)
+    w_turn: float = 0.05  # |omega| / w_max
+    w_smooth: float = 0.1  # |omega - previous omega| / w_max
+    # goal
+    arrive_radius: float = 0.1  # m, closer to the goal: turn in place to its heading
+    approach_decel: float = 0.6  # m/s^2, the deceleration the approach speed cap allows
+    # parts
+    global_planner: GlobalPlannerConfig = field(
+        default_factory=lambda: GlobalPlannerConfig(person_margin=0.1)
+    )
+    recovery: RecoveryConfig = field(default_factory=RecoveryConfig)
+
+    def __post_init__(self) -> None:
+        self._count("n_v", 2)
+        self._count("n_w", 2)
+        self._count("candidates", 1)
+        self._positive("horizon", "sim_dt", "lookahead", "clear_scale", "people_scale",
+                       "approach_decel")  # fmt: skip
+        self._nonnegative("safety_margin", "person_radius", "person_margin", "people_horizon",
+                          "people_lookahead", "standing_speed", "people_range", "w_path",
+                          "w_progress", "w_heading", "w_goal", "w_clear", "w_people",
+                          "w_speed", "w_turn", "w_smooth", "arrive_radius")  # fmt: skip
+        self._nested("global_planner", GlobalPlannerConfig)
+        self._nested("recovery", RecoveryConfig)
 
 
 class DWA(Planner):
@@ -56,60 +119,22 @@ class DWA(Planner):
     previous omega| / w_max.
     Goal: ``arrive_radius`` [m] distance under which the robot turns in place to the goal
     heading; ``approach_decel`` [m/s^2] the deceleration its speed cap allows before it.
-    ``planner_kwargs``: arguments of the :class:`GlobalPlanner`.
+    ``global_planner`` and ``recovery``: the settings of its :class:`GlobalPlanner` and
+    :class:`~srpb_gym.planners.recovery.Recovery`.
+
+    ``config``: the settings (:class:`DWAConfig`, a mapping of the fields to change, or
+    ``None``: the defaults).
     """
 
     name = "dwa"
+    config_class: ClassVar[type[DWAConfig]] = DWAConfig
 
-    def __init__(
-        self,
-        n_v: int = 11,
-        n_w: int = 21,
-        horizon: float = 2.0,
-        sim_dt: float = 0.1,
-        safety_margin: float = 0.05,
-        person_radius: float = 0.3,
-        person_margin: float = 0.1,
-        people_horizon: float = 1.2,
-        people_lookahead: float = 3.5,
-        standing_speed: float = 0.15,
-        people_range: float = 6.0,
-        candidates: int = 80,
-        w_path: float = 3.0,
-        w_progress: float = 2.0,
-        w_heading: float = 0.6,
-        lookahead: float = 0.8,
-        w_goal: float = 2.0,
-        w_clear: float = 0.5,
-        clear_scale: float = 0.15,
-        w_people: float = 1.0,
-        people_scale: float = 0.45,
-        w_speed: float = 0.2,
-        w_turn: float = 0.05,
-        w_smooth: float = 0.1,
-        arrive_radius: float = 0.1,
-        approach_decel: float = 0.6,
-        planner_kwargs: dict[str, Any] | None = None,
-    ) -> None:
-        self.n_v, self.n_w, self.horizon, self.sim_dt = n_v, n_w, horizon, sim_dt
-        self.safety_margin, self.people_horizon = safety_margin, people_horizon
-        self.people_lookahead, self.standing_speed = people_lookahead, standing_speed
-        self.people_range, self.candidates = people_range, candidates
-        self.person_radius, self.person_margin = person_radius, person_margin
-        self.w_path, self.w_progress, self.w_heading = w_path, w_progress, w_heading
-        self.lookahead, self.w_goal = lookahead, w_goal
-        self.w_clear, self.clear_scale = w_clear, clear_scale
-        self.w_people, self.people_scale = w_people, people_scale
-        self.w_speed, self.w_turn, self.w_smooth = w_speed, w_turn, w_smooth
-        self.arrive_radius, self.approach_decel = arrive_radius, approach_decel
-        kwargs = {"person_radius": person_radius, "person_margin": person_margin}
-        self.planner = GlobalPlanner(**(kwargs | self._planner_defaults() | (planner_kwargs or {})))
-        self.recovery = Recovery()
-        self._steps = max(round(horizon / sim_dt), 1)
-        self._hold = max(round((people_lookahead - horizon) / sim_dt), 0)
-
-    def _planner_defaults(self) -> dict[str, Any]:
-        return {}
+    def __init__(self, config: DWAConfig | Mapping[str, Any] | None = None) -> None:
+        self.config = cfg = self.config_class.from_spec(config)
+        self.planner = GlobalPlanner(cfg.global_planner, cfg.person_radius)
+        self.recovery = Recovery(cfg.recovery)
+        self._steps = max(round(cfg.horizon / cfg.sim_dt), 1)
+        self._hold = max(round((cfg.people_lookahead - cfg.horizon) / cfg.sim_dt), 0)
 
     # ------------------------------------------------------------------ episode
     def reset(self, knowledge: Knowledge) -> None:
@@ -118,8 +143,8 @@ class DWA(Planner):
         self._arrived = False
         self._w_prev = 0.0
         robot = knowledge.robot
-        v = np.concatenate([[robot.v_min], np.linspace(0.0, robot.v_max, self.n_v)])
-        w = np.linspace(-robot.w_max, robot.w_max, self.n_w)
+        v = np.concatenate([[robot.v_min], np.linspace(0.0, robot.v_max, self.config.n_v)])
+        w = np.linspace(-robot.w_max, robot.w_max, self.config.n_w)
         self._vt, self._wt = (a.ravel().copy() for a in np.meshgrid(v, w, indexing="ij"))
         n = self._vt.shape[0]
         self._traj = np.empty((n, self._steps, 4))
@@ -136,11 +161,11 @@ class DWA(Planner):
         k = knowledge
         gp = self.planner
         dist = math.hypot(k.goal[0] - k.pose[0], k.goal[1] - k.pose[1])
-        if self._arrived or dist <= self.arrive_radius:
+        if self._arrived or dist <= self.config.arrive_radius:
             self._arrived = dist < 0.9 * k.goal_tolerance
             if self._arrived:
                 return goal_turn(k)
-        self._update_path(k)
+        gp.update(k)
         rec = self.recovery
         look = gp.lookahead(1.0)
         ahead = look - k.pose[:2]
@@ -154,26 +179,25 @@ class DWA(Planner):
                 return cmd
             if rec.phase == "retreat":  # drive back along the trail
                 target = rec.target
-                n = max(int(np.hypot(*(target - k.pose[:2])) / gp.spacing), 1) + 1
+                n = max(int(np.hypot(*(target - k.pose[:2])) / gp.config.spacing), 1) + 1
                 local = np.linspace(k.pose[:2], target, n)
                 s_local = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(local, axis=0).T))])
                 return self._best(k, local, s_local, target)
-        local, s_local = gp.local(3.0 + k.robot.v_max * self.horizon)
+        local, s_local = gp.local(3.0 + k.robot.v_max * self.config.horizon)
         return self._best(k, local, s_local, k.goal[:2])
 
-    def _threatened(self, k: Knowledge, horizon: float = 1.5) -> bool:
+    def _threatened(self, k: Knowledge) -> bool:
         """Whether a tracked person walks into the robot standing still within
-        ``horizon`` [s] (then a recovery yields to the people-aware trajectory choice)."""
+        :data:`THREAT_HORIZON` [s] (then a recovery yields to the people-aware trajectory
+        choice)."""
         people = self._people(k)
         if people.shape[0] == 0:
             return False
-        t = np.arange(1, round(horizon / self.sim_dt) + 1) * self.sim_dt
+        dt = self.config.sim_dt
+        t = np.arange(1, round(THREAT_HORIZON / dt) + 1) * dt
         px = people[None, :, 0] + people[None, :, 2] * t[:, None] - k.pose[0]
         py = people[None, :, 1] + people[None, :, 3] * t[:, None] - k.pose[1]
         return bool((np.hypot(px, py) < people[None, :, 4]).any())
-
-    def _update_path(self, knowledge: Knowledge) -> None:
-        self.planner.update(knowledge)
 
     def _best(
         self, k: Knowledge, local: NDArray[np.float64], s_local: NDArray[np.float64],
@@ -181,10 +205,10 @@ class DWA(Planner):
     ) -> tuple[float, float]:  # fmt: skip
         """The best sample following ``local`` (path points, arc length ``s_local``) to
         ``goal`` (x, y)."""
-        gp, robot = self.planner, k.robot
+        cfg, gp, robot = self.config, self.planner, k.robot
         x, y, yaw = (float(a) for a in k.pose)
         dist = math.hypot(goal[0] - x, goal[1] - y)
-        cap = math.sqrt(2.0 * self.approach_decel * max(dist - 0.5 * self.arrive_radius, 0.0))
+        cap = math.sqrt(2.0 * cfg.approach_decel * max(dist - 0.5 * cfg.arrive_radius, 0.0))
         vt = np.minimum(self._vt, max(cap, 0.05))
         pts = self._scan_points(k)
         people = self._people(k)
@@ -192,17 +216,17 @@ class DWA(Planner):
         d0 = float(gp.clearance(np.array([x]), np.array([y]))[0])
         if pts.shape[0]:
             d0 = min(d0, float(np.hypot(pts[:, 0] - x, pts[:, 1] - y).min()))
-        r_static = max(r_hard, min(gp.robot_radius + self.safety_margin, d0 - 0.01))
+        r_static = max(r_hard, min(gp.robot_radius + cfg.safety_margin, d0 - 0.01))
         traj, (clear, t_static, gap, t_people, gap_near) = self._traj, self._out
         rollout(x, y, yaw, float(k.command[0]), float(k.command[2]), vt, self._wt,
-                robot.acc_lin, robot.acc_ang, self.sim_dt, gp.dist, gp.x0, gp.y0, gp.res,
-                pts, people, r_static, self.people_horizon, self._hold, traj, clear, t_static,
+                robot.acc_lin, robot.acc_ang, cfg.sim_dt, gp.dist, gp.x0, gp.y0, gp.res,
+                pts, people, r_static, cfg.people_horizon, self._hold, traj, clear, t_static,
                 gap, t_people, gap_near)  # fmt: skip
         cost = self._critics(k, vt, traj, clear, gap, local, s_local, goal)
-        ok = (t_static == np.inf) & (t_people > self.people_horizon) & (vt >= 0.0)
+        ok = (t_static == np.inf) & (t_people > cfg.people_horizon) & (vt >= 0.0)
         if ok.any():  # extra costs of the most promising admissible samples only
             rows = np.flatnonzero(ok)
-            rows = rows[np.argsort(cost[rows], kind="stable")[: self.candidates]]
+            rows = rows[np.argsort(cost[rows], kind="stable")[: cfg.candidates]]
             extra = np.full(cost.shape[0], np.inf)
             extra[rows] = self._social_costs(k, traj[rows])
             cost = cost + extra
@@ -216,28 +240,28 @@ class DWA(Planner):
 
     def _critics(self, k: Knowledge, vt, traj, clear, gap, local, s_local, goal) -> NDArray:
         """Weighted sum of the critics of every sample (see the class docstring)."""
-        gp, robot = self.planner, k.robot
+        cfg, gp, robot = self.config, self.planner, k.robot
         end = traj[:, -1, :]
         dist = math.hypot(goal[0] - k.pose[0], goal[1] - k.pose[1])
         d = np.hypot(end[:, None, 0] - local[None, :, 0], end[:, None, 1] - local[None, :, 1])
         j = np.argmin(d, axis=1)
         path_d = d[np.arange(j.shape[0]), j]
         progress = s_local[j]
-        look_idx = np.minimum(np.searchsorted(s_local, progress + self.lookahead), len(local) - 1)
+        look_idx = np.minimum(np.searchsorted(s_local, progress + cfg.lookahead), len(local) - 1)
         look = local[look_idx]
         to_look = np.arctan2(look[:, 1] - end[:, 1], look[:, 0] - end[:, 0])
         head = np.abs(wrap_angle(to_look - end[:, 2]))
         near = np.hypot(look[:, 0] - end[:, 0], look[:, 1] - end[:, 1]) < 0.3
         head = np.where(near, 0.0, head)
-        cost = self.w_path * path_d - self.w_progress * progress + self.w_heading * head
-        if dist < robot.v_max * self.horizon + self.lookahead:
-            cost += self.w_goal * np.hypot(end[:, 0] - goal[0], end[:, 1] - goal[1])
-        safe = gp.robot_radius + self.safety_margin
-        cost += self.w_clear * np.exp(-np.maximum(clear - safe, 0.0) / self.clear_scale)
-        cost += self.w_people * np.exp(-np.maximum(gap, -0.5) / self.people_scale)
-        cost += self.w_speed * (1.0 - vt / robot.v_max)
-        cost += self.w_turn * np.abs(self._wt) / robot.w_max
-        cost += self.w_smooth * np.abs(self._wt - self._w_prev) / robot.w_max
+        cost = cfg.w_path * path_d - cfg.w_progress * progress + cfg.w_heading * head
+        if dist < robot.v_max * cfg.horizon + cfg.lookahead:
+            cost += cfg.w_goal * np.hypot(end[:, 0] - goal[0], end[:, 1] - goal[1])
+        safe = gp.robot_radius + cfg.safety_margin
+        cost += cfg.w_clear * np.exp(-np.maximum(clear - safe, 0.0) / cfg.clear_scale)
+        cost += cfg.w_people * np.exp(-np.maximum(gap, -0.5) / cfg.people_scale)
+        cost += cfg.w_speed * (1.0 - vt / robot.v_max)
+        cost += cfg.w_turn * np.abs(self._wt) / robot.w_max
+        cost += cfg.w_smooth * np.abs(self._wt - self._w_prev) / robot.w_max
         return cost
 
     def _social_costs(self, k: Knowledge, traj: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -247,14 +271,15 @@ class DWA(Planner):
 
     # ------------------------------------------------------------------ perception
     def _scan_points(self, k: Knowledge) -> NDArray[np.float64]:
-        reach = k.robot.v_max * self.horizon + 1.0
-        return scan_points(k, self.planner, reach, self.person_radius)
+        reach = k.robot.v_max * self.config.horizon + 1.0
+        return scan_points(k, self.planner, reach, self.config.person_radius)
 
     def _people(self, k: Knowledge) -> NDArray[np.float64]:
-        people = people_array(k, self.planner.robot_radius, self.person_radius,
-                              self.person_margin, self.standing_speed)  # fmt: skip
+        cfg = self.config
+        people = people_array(k, self.planner.robot_radius, cfg.person_radius,
+                              cfg.person_margin, cfg.standing_speed)  # fmt: skip
         # people that cannot come within 1.5 m of any trajectory in the lookahead are left out
         dist = np.hypot(people[:, 0] - k.pose[0], people[:, 1] - k.pose[1])
-        reach = k.robot.v_max * self.horizon + np.hypot(people[:, 2], people[:, 3]) * (
-            self.people_lookahead) + people[:, 4] + 1.5  # fmt: skip
-        return people[(dist < reach) & (dist < self.people_range)]
+        reach = k.robot.v_max * cfg.horizon + np.hypot(people[:, 2], people[:, 3]) * (
+            cfg.people_lookahead) + people[:, 4] + 1.5  # fmt: skip
+        return people[(dist < reach) & (dist < cfg.people_range)]

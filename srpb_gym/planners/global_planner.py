@@ -15,12 +15,15 @@ Every grid operation is one compiled kernel; nothing loops over cells in Python.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from srpb_gym.planners.base import Knowledge
+from srpb_gym.planners.base import PERSON_RADIUS, Knowledge
+from srpb_gym.planners.config import PlannerConfig
 from srpb_gym.planners.grid import (
     grid_search,
     people_layer,
@@ -28,6 +31,13 @@ from srpb_gym.planners.grid import (
     trace_path,
     wall_distance,
 )
+
+#: Walls farther than this from a cell [m] are not measured (its distance reads this).
+WALL_REACH = 5.0
+#: The robot's place on the path is searched this far ahead of the last one [m].
+NEAREST_WINDOW = 2.0
+#: Tracks slower than this [m/s] for ``settle_time`` are standing people.
+STANDING_SPEED = 0.3
 
 
 def _lookup(keys: NDArray, values: NDArray, query: NDArray, default: float) -> NDArray:
@@ -42,85 +52,84 @@ def _lookup(keys: NDArray, values: NDArray, query: NDArray, default: float) -> N
     return out
 
 
+@dataclass(frozen=True)
+class GlobalPlannerConfig(PlannerConfig):
+    """Settings of the :class:`GlobalPlanner` (lengths in m, times in s, costs per metre of
+    path; a cost of 1 is free space). The robot's radius and bumper come from its
+    :class:`~srpb_gym.sim.robot.RobotConfig`, the assumed person radius from the owner."""
+
+    resolution: float = 0.05  # m, grid cell size
+    margin: float = 0.04  # m, beyond the robot's radius plus bumper: cells closer are lethal
+    wall_keepout: float = 0.12  # m, cells closer than this to a wall are impassable
+    lethal_cost: float = 200.0  # per m, a lethal cell (passable only as a last resort)
+    inflation_weight: float = 4.0  # per m, extra cost at the lethal boundary, decaying ...
+    inflation_scale: float = 0.25  # m, ... exponentially over this length (the gradient)
+    person_margin: float = 0.05  # m, beyond the two radii: a person's core
+    walking_cost: float = 15.0  # per m, the core of a walking person (standing: lethal_cost)
+    person_weight: float = 3.0  # per m, soft cost at the edge of a person's core, ...
+    person_scale: float = 0.3  # m, ... decaying exponentially over this length
+    person_horizon: float = 2.0  # s, walking people block their way this far ahead
+    oncoming_cos: float = 0.87  # walkers count within acos(this) of heading at the robot
+    pass_bias: float = 0.4  # m, a walker's cost is shifted this far to the person's right
+    memory: float = 5.0  # s, standing people stay obstacles this long after track loss
+    settle_time: float = 1.0  # s, slower than STANDING_SPEED this long: standing
+    people_range: float = 6.0  # m, only people this close to the robot are obstacles
+    replan_period: float = 2.0  # s, replan at least this often
+    max_deviation: float = 0.6  # m, replan when the robot is this far from the path
+    block_check: float = 3.0  # m, replan when a person blocks the path this far ahead ...
+    min_replan_interval: float = 0.5  # s, ... (and off the path) at most this often
+    heuristic_weight: float = 1.001  # A* heuristic weight (> 1: faster, costlier paths)
+    hysteresis: float = 0.15  # a new path must be this fraction cheaper ...
+    hysteresis_length: float = 0.5  # m, ... and this much more to replace the current one
+    spacing: float = 0.1  # m, distance between the returned path points
+
+    def __post_init__(self) -> None:
+        self._positive("resolution", "lethal_cost", "inflation_scale", "person_scale",
+                       "replan_period", "max_deviation", "spacing")  # fmt: skip
+        self._nonnegative("margin", "wall_keepout", "inflation_weight", "person_margin",
+                          "walking_cost", "person_weight", "person_horizon", "memory",
+                          "settle_time", "people_range", "block_check",
+                          "min_replan_interval", "heuristic_weight", "hysteresis",
+                          "hysteresis_length")  # fmt: skip
+        self._within("oncoming_cos", -1.0, 1.0)
+        self._number("pass_bias")
+
+
 class GlobalPlanner:
     """Grid planner of the static map with people as temporary obstacles.
 
+    The grid (cells of ``resolution``) holds each cell's distance to the nearest wall; cells
+    closer than ``wall_keepout`` are impassable, cells closer than the robot's radius plus
+    bumper plus ``margin`` cost ``lethal_cost`` per metre, and beyond that the cost decays
+    from 1 + ``inflation_weight`` to 1 over ``inflation_scale``. Tracked people within
+    ``people_range`` are temporary obstacles: standing people (slower than 0.3 m/s for
+    ``settle_time``, remembered ``memory`` seconds after their track is lost) and people
+    walking straight at the robot (within acos(``oncoming_cos``) of the line to it), swept
+    ``person_horizon`` ahead and shifted ``pass_bias`` to their right (the robot keeps
+    right). A person's core (robot radius plus bumper plus ``person_radius`` plus
+    ``person_margin``) costs ``lethal_cost`` (standing) or ``walking_cost`` (walking: the
+    local planner handles them) per metre, with a soft edge of ``person_weight``
+    decaying over ``person_scale``. The path is replanned every ``replan_period``, when the
+    robot is more than ``max_deviation`` off it, and when a person blocks it within
+    ``block_check`` ahead (at most every ``min_replan_interval``); a new path replaces the
+    current one only when cheaper than its cost / (1 + ``hysteresis``) minus
+    ``hysteresis_length``.
+
     Args:
-        resolution: grid cell size [m].
-        margin: clearance beyond the robot's radius and bumper under which cells are
-            lethal [m].
-        wall_keepout: cells closer than this to a wall are impassable [m].
-        lethal_cost: cost per metre of a lethal cell (passable only as a last resort).
-        inflation_weight: extra cost per metre at the lethal boundary, decaying
-            exponentially with ``inflation_scale`` [m] (the clearance gradient).
+        config: the settings (:class:`GlobalPlannerConfig`, a mapping of the fields to
+            change, or ``None``: the defaults).
         person_radius: assumed body radius of a tracked person [m].
-        person_margin: extra clearance around a person under which cells cost
-            ``lethal_cost`` (standing people) or ``walking_cost`` per metre (walking people:
-            the local planner handles them) [m]; ``person_weight`` and ``person_scale``
-            [m]: soft cost around that core.
-        person_horizon: walking people block their way this far ahead [s]. Only people
-            walking straight at the robot (within acos(``oncoming_cos``) of the line to
-            it) count; the local planner handles the others.
-        pass_bias: a walking person's cost is shifted this much to the person's right [m],
-            so paths pass people on their left (the robot keeps right).
-        memory: standing people stay obstacles this long after their track is lost [s].
-        settle_time: a track counts as a standing person once it has been slower than
-            0.3 m/s for this long [s] (walkers slow down and new tracks start at rest).
-        people_range: only people within this distance of the robot are obstacles [m].
-        replan_period: replan at least this often [s]; ``max_deviation``: replan when the
-            robot is farther than this from the path [m]; ``block_check``: replan when a
-            person blocks the path within this distance ahead [m] (at most every
-            ``min_replan_interval`` seconds).
-        heuristic_weight: weight of the A* heuristic (the static cost-to-go); above 1 the
-            search expands fewer cells and returns paths at most that factor costlier.
-        hysteresis, hysteresis_length: a replanned path replaces the current one only when
-            cheaper than its cost / (1 + ``hysteresis``) minus ``hysteresis_length`` [m].
-        spacing: distance between the returned path points [m].
     """
 
     def __init__(
-        self,
-        resolution: float = 0.05,
-        margin: float = 0.04,
-        wall_keepout: float = 0.12,
-        lethal_cost: float = 200.0,
-        inflation_weight: float = 4.0,
-        inflation_scale: float = 0.25,
-        person_radius: float = 0.3,
-        person_margin: float = 0.05,
-        walking_cost: float = 15.0,
-        person_weight: float = 3.0,
-        person_scale: float = 0.3,
-        person_horizon: float = 2.0,
-        oncoming_cos: float = 0.87,
-        pass_bias: float = 0.4,
-        memory: float = 5.0,
-        settle_time: float = 1.0,
-        people_range: float = 6.0,
-        replan_period: float = 2.0,
-        max_deviation: float = 0.6,
-        block_check: float = 3.0,
-        min_replan_interval: float = 0.5,
-        heuristic_weight: float = 1.001,
-        hysteresis: float = 0.15,
-        hysteresis_length: float = 0.5,
-        spacing: float = 0.1,
-    ) -> None:
-        self.res, self.margin, self.keepout = resolution, margin, wall_keepout
-        self.lethal_cost = lethal_cost
-        self.inflation_weight, self.inflation_scale = inflation_weight, inflation_scale
-        self.person_radius, self.person_margin = person_radius, person_margin
-        self.person_weight, self.person_scale, self.walking_cost = (person_weight, person_scale,
-                                                                    walking_cost)  # fmt: skip
-        self.person_horizon, self.pass_bias, self.memory = person_horizon, pass_bias, memory
-        self.people_range, self.oncoming_cos, self.settle_time = (people_range, oncoming_cos,
-                                                                  settle_time)  # fmt: skip
+        self, config: GlobalPlannerConfig | Mapping[str, Any] | None = None,
+        person_radius: float = PERSON_RADIUS,
+    ) -> None:  # fmt: skip
+        self.config = GlobalPlannerConfig.from_spec(config)
+        self.person_radius = float(person_radius)
+        self.res = self.config.resolution
         # extra cost layers: called as layer(knowledge, cost grid) before each search
         self.layers: list[Callable[[Knowledge, NDArray[np.float64]], None]] = []
-        self.replan_period, self.max_deviation = replan_period, max_deviation
-        self.block_check, self.min_replan_interval = block_check, min_replan_interval
-        self.hysteresis, self.hysteresis_length = hysteresis, hysteresis_length
-        self.heuristic_weight, self.spacing = heuristic_weight, spacing
         self.path, self.arc = np.zeros((0, 2)), np.zeros(0)
 
     # ------------------------------------------------------------------ episode setup
@@ -133,18 +142,18 @@ class GlobalPlanner:
         self.ny = max(math.ceil((ymax - ymin) / res), 2)
         walls = np.ascontiguousarray(knowledge.walls, dtype=np.float64).reshape(-1, 4)
         self.dist = np.empty((self.ny, self.nx))
-        wall_distance(walls, self.x0, self.y0, res, 5.0, self.dist)
-        robot = knowledge.robot
+        wall_distance(walls, self.x0, self.y0, res, WALL_REACH, self.dist)
+        cfg, robot = self.config, knowledge.robot
         self.robot_radius = robot.radius + robot.bumper
-        lethal = self.robot_radius + self.margin
+        lethal = self.robot_radius + cfg.margin
         d = self.dist
-        cost = 1.0 + self.inflation_weight * np.exp(-(np.maximum(d, lethal) - lethal)
-                                                    / self.inflation_scale)  # fmt: skip
-        cost[d < lethal] = self.lethal_cost
-        cost[d < self.keepout] = np.inf
+        cost = 1.0 + cfg.inflation_weight * np.exp(-(np.maximum(d, lethal) - lethal)
+                                                   / cfg.inflation_scale)  # fmt: skip
+        cost[d < lethal] = cfg.lethal_cost
+        cost[d < cfg.wall_keepout] = np.inf
         self.goal = np.array(knowledge.goal[:2], dtype=np.float64)
         goal_cell = self.cell(*self.goal)
-        cost.ravel()[goal_cell] = min(cost.ravel()[goal_cell], self.lethal_cost)  # reachable
+        cost.ravel()[goal_cell] = min(cost.ravel()[goal_cell], cfg.lethal_cost)  # reachable
         self.static_cost = cost
         n = self.nx * self.ny
         self._g, self._h = np.empty(n), np.zeros(n)
@@ -158,7 +167,6 @@ class GlobalPlanner:
         self.path, self.arc = np.zeros((0, 2)), np.zeros(0)
         self.index = 0
         self.last_plan = -math.inf
-        self.replans = 0
         self._mem = np.zeros((0, 4))  # standing people: id, x, y, time last seen
         self._slow_ids, self._slow_t = np.zeros(0, np.int64), np.zeros(0)
         self._still = np.zeros(0, dtype=np.bool_)
@@ -181,18 +189,18 @@ class GlobalPlanner:
         """Replan when needed (no path, periodically, off the path, blocked by people).
         Returns whether it searched."""
         x, y = float(knowledge.pose[0]), float(knowledge.pose[1])
-        t = knowledge.t
+        t, cfg = knowledge.t, self.config
         self._remember(knowledge)
         if self.path.shape[0] == 0:
             self.plan(knowledge, keep=False)
             return True
         self.index = self.nearest(x, y)
         off = math.hypot(self.path[self.index, 0] - x, self.path[self.index, 1] - y)
-        if off > self.max_deviation and t - self.last_plan >= self.min_replan_interval:
+        if off > cfg.max_deviation and t - self.last_plan >= cfg.min_replan_interval:
             self.plan(knowledge, keep=True)  # the old path (joined from here) may still win
             return True
-        due = t - self.last_plan >= self.replan_period
-        if not due and t - self.last_plan >= self.min_replan_interval:
+        due = t - self.last_plan >= cfg.replan_period
+        if not due and t - self.last_plan >= cfg.min_replan_interval:
             due = self._blocked(knowledge)
         if due:
             self.plan(knowledge, keep=True)
@@ -203,20 +211,20 @@ class GlobalPlanner:
         the rest of the current path stays unless the new one is cheaper by more than the
         ``hysteresis`` (so the path does not flip between sides of moving people)."""
         x, y = float(knowledge.pose[0]), float(knowledge.pose[1])
+        cfg = self.config
         cost = self.static_cost.copy()
         ax, ay, bx, by, core_cost = self._obstacle_segments(knowledge)
         if ax.shape[0]:
-            core = self.robot_radius + self.person_radius + self.person_margin
+            core = self.robot_radius + self.person_radius + cfg.person_margin
             people_layer(cost, self.x0, self.y0, self.res, ax, ay, bx, by, core, core_cost,
-                         self.person_weight, self.person_scale,
-                         4.0 * self.person_scale)  # fmt: skip
+                         cfg.person_weight, cfg.person_scale, 4.0 * cfg.person_scale)  # fmt: skip
         for layer in self.layers:
             layer(knowledge, cost)
         start = self.cell(x, y)
         flat = cost.ravel()
-        flat[start] = min(flat[start], self.lethal_cost)  # leave a lethal start cell
+        flat[start] = min(flat[start], cfg.lethal_cost)  # leave a lethal start cell
         found = grid_search(flat, self.nx, self.res, start, self._goal_cell, self._h,
-                            self.heuristic_weight, self._g, self._parent, self._done, self._hk,
+                            cfg.heuristic_weight, self._g, self._parent, self._done, self._hk,
                             self._hv)  # fmt: skip
         n = trace_path(self._parent, self._goal_cell, self._cells) if found else 0
         if n == 0:  # unreachable: head straight for the goal
@@ -231,11 +239,10 @@ class GlobalPlanner:
         if keep and self.path.shape[0]:
             old = np.vstack([[x, y], self.path[self.index :]])
             old_cost, new_cost = self._path_cost(cost, old), self._path_cost(cost, path)
-            if old_cost <= new_cost * (1.0 + self.hysteresis) + self.hysteresis_length:
+            if old_cost <= new_cost * (1.0 + cfg.hysteresis) + cfg.hysteresis_length:
                 return self.path
         self.path, self.arc = path, arc
         self.index = 0
-        self.replans += 1
         return self.path
 
     def _path_cost(self, cost: NDArray[np.float64], pts: NDArray[np.float64]) -> float:
@@ -250,26 +257,26 @@ class GlobalPlanner:
         """Track since when each track has been slow and keep the tracks slow for
         ``settle_time`` as standing people (rows id, x, y, last seen) for ``memory`` s."""
         tr, t = knowledge.tracks, knowledge.t
-        slow = np.hypot(*tr.velocity.T) < 0.3
+        slow = np.hypot(*tr.velocity.T) < STANDING_SPEED
         since = np.where(slow, _lookup(self._slow_ids, self._slow_t, tr.ids, t), t)
         self._slow_ids, self._slow_t = tr.ids[slow], since[slow]
-        self._still = slow & (t - since >= self.settle_time)
+        self._still = slow & (t - since >= self.config.settle_time)
         mem = self._mem[~np.isin(self._mem[:, 0], tr.ids[self._still])]
         new = np.column_stack([tr.ids[self._still], tr.xy[self._still],
                                np.full(int(self._still.sum()), t)])  # fmt: skip
         mem = np.vstack([mem, new])
-        self._mem = mem[np.isin(mem[:, 0], tr.ids) | (t - mem[:, 3] <= self.memory)]
+        self._mem = mem[np.isin(mem[:, 0], tr.ids) | (t - mem[:, 3] <= self.config.memory)]
 
     def _obstacle_people(self, knowledge: Knowledge) -> tuple[NDArray, NDArray, NDArray]:
         """Tracked people that are obstacles of the global plan: within ``people_range``,
         standing, or walking straight at the robot. Returns their (K, 2) positions and
         velocities (zero when standing) and whether each is standing."""
-        tr = knowledge.tracks
+        tr, cfg = knowledge.tracks, self.config
         rel = knowledge.pose[:2] - tr.xy
         dist, speed = np.hypot(*rel.T), np.hypot(*tr.velocity.T)
         standing = self._still if self._still.shape == speed.shape else speed < 0.0
-        towards = (tr.velocity * rel).sum(axis=1) > self.oncoming_cos * speed * dist
-        use = (dist < self.people_range) & (standing | (towards & (self.walking_cost > 0)))
+        towards = (tr.velocity * rel).sum(axis=1) > cfg.oncoming_cos * speed * dist
+        use = (dist < cfg.people_range) & (standing | (towards & (cfg.walking_cost > 0)))
         vel = np.where(standing[:, None], 0.0, tr.velocity)
         return tr.xy[use], vel[use], standing[use]
 
@@ -277,16 +284,17 @@ class GlobalPlanner:
         """People as segments from their current position (walkers: shifted by
         ``pass_bias`` to their right) to where they will be ``person_horizon`` s ahead,
         plus remembered standing people whose tracks were lost; and their core costs."""
+        cfg = self.config
         xy, vel, standing = self._obstacle_people(knowledge)
         speed = np.maximum(np.hypot(vel[:, 0], vel[:, 1]), 1e-9)
         right = np.column_stack([vel[:, 1], -vel[:, 0]]) / speed[:, None]
-        a = xy + np.where(standing[:, None], 0.0, self.pass_bias * right)
-        b = a + vel * self.person_horizon
-        core_cost = np.where(standing, self.lethal_cost, self.walking_cost)
+        a = xy + np.where(standing[:, None], 0.0, cfg.pass_bias * right)
+        b = a + vel * cfg.person_horizon
+        core_cost = np.where(standing, cfg.lethal_cost, cfg.walking_cost)
         lost = self._mem[~np.isin(self._mem[:, 0], knowledge.tracks.ids), 1:3]
         if lost.shape[0]:
             a, b = np.vstack([a, lost]), np.vstack([b, lost])
-            core_cost = np.concatenate([core_cost, np.full(lost.shape[0], self.lethal_cost)])
+            core_cost = np.concatenate([core_cost, np.full(lost.shape[0], cfg.lethal_cost)])
         return (
             np.ascontiguousarray(a[:, 0]),
             np.ascontiguousarray(a[:, 1]),
@@ -301,10 +309,10 @@ class GlobalPlanner:
         xy, vel, _ = self._obstacle_people(knowledge)
         if xy.shape[0] == 0:
             return False
-        ahead = self.arc[self.index] + self.block_check
+        ahead = self.arc[self.index] + self.config.block_check
         seg = self.path[self.index : int(np.searchsorted(self.arc, ahead)) + 1]
-        core = self.robot_radius + self.person_radius + self.person_margin
-        people = np.vstack([xy, xy + vel * self.person_horizon])
+        core = self.robot_radius + self.person_radius + self.config.person_margin
+        people = np.vstack([xy, xy + vel * self.config.person_horizon])
         d = np.hypot(seg[:, None, 0] - people[None, :, 0], seg[:, None, 1] - people[None, :, 1])
         return bool((d < core).any())
 
@@ -312,7 +320,7 @@ class GlobalPlanner:
         """Moving-average smoothing that never moves a point closer to a wall than the
         lethal clearance, resampled every ``spacing`` metres; returns (path, arc length)."""
         if pts.shape[0] > 4:
-            lethal = self.robot_radius + self.margin
+            lethal = self.robot_radius + self.config.margin
             raw_clear = self.clearance(pts[:, 0], pts[:, 1])
             sm = pts.copy()
             k = 7
@@ -330,7 +338,7 @@ class GlobalPlanner:
         arc = np.concatenate([[0.0], np.cumsum(seg)])
         if arc[-1] < 1e-9:
             return pts[-1:].copy(), np.zeros(1)
-        n = max(math.ceil(arc[-1] / self.spacing), 1) + 1
+        n = max(math.ceil(arc[-1] / self.config.spacing), 1) + 1
         s = np.linspace(0.0, arc[-1], n)
         path = np.column_stack([np.interp(s, arc, pts[:, 0]), np.interp(s, arc, pts[:, 1])])
         return path, s
@@ -340,11 +348,11 @@ class GlobalPlanner:
         return float(self._h[self.cell(x, y)])
 
     # ------------------------------------------------------------------ path following
-    def nearest(self, x: float, y: float, window: float = 2.0) -> int:
+    def nearest(self, x: float, y: float) -> int:
         """Index of the path point nearest to (x, y) among those from the last index to
-        ``window`` metres ahead of it (the robot does not jump along the path)."""
+        :data:`NEAREST_WINDOW` metres ahead of it (the robot does not jump along the path)."""
         lo = self.index
-        hi = int(np.searchsorted(self.arc, self.arc[lo] + window)) + 1
+        hi = int(np.searchsorted(self.arc, self.arc[lo] + NEAREST_WINDOW)) + 1
         seg = self.path[lo:hi]
         return lo + int(np.argmin(np.hypot(seg[:, 0] - x, seg[:, 1] - y)))
 

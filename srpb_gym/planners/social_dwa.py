@@ -19,7 +19,9 @@ keeps out of personal spaces and O-spaces.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
@@ -32,7 +34,9 @@ from srpb_gym.metrics.kernels import gauss
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.perception.tracker import Tracks
 from srpb_gym.planners.base import Knowledge
-from srpb_gym.planners.dwa import DWA
+from srpb_gym.planners.config import SettingError
+from srpb_gym.planners.dwa import DWA, DWAConfig
+from srpb_gym.planners.global_planner import GlobalPlannerConfig
 
 
 @njit(cache=True, error_model="numpy")
@@ -129,6 +133,55 @@ def detect_groups(
     return members, np.cumsum(size) - size, size
 
 
+@dataclass(frozen=True)
+class SocialDWAConfig(DWAConfig):
+    """Settings of the :class:`SocialDWA`: those of :class:`DWAConfig` and the social ones
+    (lengths in m, times in s, speeds in m/s). Its global planner searches with a weaker
+    heuristic and replans less often than the DWA's (the social layers make searches
+    costlier)."""
+
+    # trajectory costs: time averages of SRPB values in [0, 1]
+    w_psi: float = 8.0  # personal space
+    w_fsi: float = 6.0  # O-space of groups
+    w_dir: float = 2.0  # heading disturbance
+    social_stride: int = 4  # every how many trajectory steps the poses are scored
+    social_range: float = 5.0  # m, only people this close to the robot count, ...
+    social_people: int = 6  # ... at most this many, the nearest
+    # groups: standing tracks (slower than group_speed) within group_distance of another
+    group_distance: float = 2.0  # m
+    group_speed: float = 0.3  # m/s
+    group_memory: float = 10.0  # s, a group stays known this long after it was seen ...
+    group_match: float = 1.0  # m, ... unless one is seen this close to it
+    # cost layers of the global planner (per metre)
+    psi_layer: float = 3.0  # personal spaces of standing people
+    walking_layer: float = 10.0  # personal spaces of people walking at the robot
+    fsi_layer: float = 30.0  # O-spaces
+    layer_spread: float = 1.5  # standing people's and groups' Gaussians this much wider
+    layer_reach: float = 2.5  # m, personal spaces reach this far
+    # impatience: no progress for ``patience``: the social costs fade over another
+    # ``patience`` to ``min_scale`` times their weight
+    patience: float = 4.0  # s
+    min_scale: float = 0.25
+    global_planner: GlobalPlannerConfig = field(
+        default_factory=lambda: GlobalPlannerConfig(
+            person_margin=0.1, heuristic_weight=1.5, replan_period=3.0, min_replan_interval=1.0
+        )
+    )
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._count("social_stride", 1)
+        if self.social_stride > max(round(self.horizon / self.sim_dt), 1):
+            raise SettingError("social_stride", "must not exceed the steps of a trajectory "
+                               f"(horizon / sim_dt), got {self.social_stride}")  # fmt: skip
+        self._count("social_people", 0)
+        self._positive("layer_spread", "patience")
+        self._nonnegative("w_psi", "w_fsi", "w_dir", "social_range", "group_distance",
+                          "group_speed", "group_memory", "group_match", "psi_layer",
+                          "walking_layer", "fsi_layer", "layer_reach")  # fmt: skip
+        self._within("min_scale", 0.0, 1.0)
+
+
 class SocialDWA(DWA):
     """:class:`DWA` with the SRPB social costs (see the module docstring).
 
@@ -146,53 +199,33 @@ class SocialDWA(DWA):
     Impatience: when the robot has not come 0.2 m closer to the goal (static cost-to-go)
     for ``patience`` [s], the social costs fade linearly over another ``patience`` seconds
     to ``min_scale`` times their weight (so it does not wait forever in a crowd).
-    Other arguments: those of :class:`DWA`.
+    The metric parameters of the costs are the ``paper`` preset's with the robot's
+    circumradius and largest speed (as the environment scores them).
+
+    ``config``: the settings (:class:`SocialDWAConfig`, a mapping of the fields to change,
+    or ``None``: the defaults).
     """
 
     name = "social-dwa"
+    config_class: ClassVar[type[SocialDWAConfig]] = SocialDWAConfig
+    config: SocialDWAConfig
 
-    def __init__(
-        self,
-        w_psi: float = 8.0,
-        w_fsi: float = 6.0,
-        w_dir: float = 2.0,
-        social_stride: int = 4,
-        social_range: float = 5.0,
-        social_people: int = 6,
-        group_distance: float = 2.0,
-        group_speed: float = 0.3,
-        group_memory: float = 10.0,
-        group_match: float = 1.0,
-        psi_layer: float = 3.0,
-        walking_layer: float = 10.0,
-        fsi_layer: float = 30.0,
-        layer_spread: float = 1.5,
-        layer_reach: float = 2.5,
-        patience: float = 4.0,
-        min_scale: float = 0.25,
-        **kwargs: Any,
-    ) -> None:
-        super().__init__(**kwargs)
-        self.w_psi, self.w_fsi, self.w_dir = w_psi, w_fsi, w_dir
-        self.social_stride, self.social_range = social_stride, social_range
-        self.social_people = social_people
-        self.group_distance, self.group_speed = group_distance, group_speed
-        self.psi_layer, self.fsi_layer, self.layer_spread = psi_layer, fsi_layer, layer_spread
-        self.walking_layer, self.layer_reach = walking_layer, layer_reach
-        self.patience, self.min_scale = patience, min_scale
+    def __init__(self, config: SocialDWAConfig | Mapping[str, Any] | None = None) -> None:
+        super().__init__(config)
         self._best_c2g, self._progress_t, self._social_scale = math.inf, 0.0, 1.0
         self.params = MetricParams()
-        self.group_memory, self.group_match = group_memory, group_match
         self.planner.layers.append(self._layers)
         self._memory = np.zeros((0, 9))
         self._ellipses, self._gcov = np.zeros((0, 5)), np.zeros((0, 3))
 
-    def _planner_defaults(self) -> dict[str, Any]:
-        # the social layers make the static heuristic weak: searches cost more, run fewer
-        return {"heuristic_weight": 1.5, "replan_period": 3.0, "min_replan_interval": 1.0}
-
     def reset(self, knowledge: Knowledge) -> None:
+        from srpb_gym.task import robot_max_speed  # (the task module imports the planners)
+
         super().reset(knowledge)
+        robot = knowledge.robot
+        self.params = MetricParams().replace(
+            robot_circumradius=robot.radius, robot_max_speed=robot_max_speed(robot)
+        )
         self._memory = np.zeros((0, 9))  # remembered groups: ellipse (5), cov (3), time seen
         self._best_c2g, self._progress_t, self._social_scale = math.inf, knowledge.t, 1.0
         self._ellipses, self._gcov = np.zeros((0, 5)), np.zeros((0, 3))
@@ -204,8 +237,9 @@ class SocialDWA(DWA):
             c2g = self.planner.cost_to_go(float(k.pose[0]), float(k.pose[1]))
             if c2g < self._best_c2g - 0.2:
                 self._best_c2g, self._progress_t = c2g, k.t
-        idle = k.t - self._progress_t - self.patience
-        self._social_scale = float(np.clip(1.0 - idle / self.patience, self.min_scale, 1.0))
+        cfg = self.config
+        idle = k.t - self._progress_t - cfg.patience
+        self._social_scale = float(np.clip(1.0 - idle / cfg.patience, cfg.min_scale, 1.0))
         return super().decide(k)
 
     def _perceive_groups(self, tracks: Tracks, t: float) -> None:
@@ -215,15 +249,16 @@ class SocialDWA(DWA):
         mem = self._memory
         if seen.shape[0] and mem.shape[0]:
             d = np.hypot(mem[:, None, 0] - seen[None, :, 0], mem[:, None, 1] - seen[None, :, 1])
-            mem = mem[d.min(axis=1) > self.group_match]
-        mem = np.vstack([mem[t - mem[:, 8] <= self.group_memory], np.column_stack(
+            mem = mem[d.min(axis=1) > self.config.group_match]
+        mem = np.vstack([mem[t - mem[:, 8] <= self.config.group_memory], np.column_stack(
             [seen, np.full(seen.shape[0], t)])])  # fmt: skip
         self._memory = mem
         self._ellipses, self._gcov = mem[:, :5].copy(), mem[:, 5:8].copy()
 
     def _detect(self, tracks: Tracks) -> NDArray[np.float64]:
         """(G, 8) O-space ellipse and covariance (sxx, sxy, syy) of each group seen now."""
-        members, start, size = detect_groups(tracks, self.group_speed, self.group_distance)
+        cfg = self.config
+        members, start, size = detect_groups(tracks, cfg.group_speed, cfg.group_distance)
         g = size.shape[0]
         if g == 0:
             return np.zeros((0, 8))
@@ -240,12 +275,12 @@ class SocialDWA(DWA):
 
     def _layers(self, knowledge: Knowledge, cost: NDArray[np.float64]) -> None:
         """The personal-space and O-space layers of the global planner's cost grid."""
-        gp, tr = self.planner, knowledge.tracks
+        cfg, gp, tr = self.config, self.planner, knowledge.tracks
         rel = knowledge.pose[:2] - tr.xy
         dist, speed = np.hypot(*rel.T), np.hypot(*tr.velocity.T)
-        still = speed < self.group_speed
-        oncoming = (tr.velocity * rel).sum(axis=1) > gp.oncoming_cos * speed * dist
-        near = np.flatnonzero((dist < self.social_range) & (still | oncoming))
+        still = speed < cfg.group_speed
+        oncoming = (tr.velocity * rel).sum(axis=1) > gp.config.oncoming_cos * speed * dist
+        near = np.flatnonzero((dist < cfg.social_range) & (still | oncoming))
         if near.size:  # standing people and people walking at the robot
             cov = tr.covariance[near]
             speed, still = speed[near], still[near]
@@ -254,32 +289,32 @@ class SocialDWA(DWA):
                 np.ascontiguousarray(tr.xy[near, 1]), np.ascontiguousarray(tr.yaw[near]), speed,
                 np.ascontiguousarray(cov[:, 0, 0]), 0.5 * (cov[:, 0, 1] + cov[:, 1, 0]),
                 np.ascontiguousarray(cov[:, 1, 1]),
-                np.where(still, self.psi_layer, self.walking_layer),
-                np.where(still, self.layer_spread, 1.0), self.layer_reach,
+                np.where(still, cfg.psi_layer, cfg.walking_layer),
+                np.where(still, cfg.layer_spread, 1.0), cfg.layer_reach,
             )  # fmt: skip
-        if self.fsi_layer > 0 and self._ellipses.shape[0]:
+        if cfg.fsi_layer > 0 and self._ellipses.shape[0]:
             ospace_layer(cost, gp.x0, gp.y0, gp.res, np.ascontiguousarray(self._ellipses),
-                         self._gcov, self.fsi_layer, self.layer_spread,
-                         1.5 * self.layer_spread)  # fmt: skip
+                         self._gcov, cfg.fsi_layer, cfg.layer_spread,
+                         1.5 * cfg.layer_spread)  # fmt: skip
 
     def _social_costs(self, k: Knowledge, traj: NDArray[np.float64]) -> NDArray[np.float64]:
         """w_psi psi + w_dir dir + w_fsi fsi of each trajectory: time averages over its
         poses (every ``social_stride`` steps) of the largest per-person (per-group) value,
         people predicted at constant velocity."""
-        tr, p = k.tracks, self.params
+        cfg, tr, p = self.config, k.tracks, self.params
         n_s = traj.shape[0]
         social = np.zeros(n_s)
-        poses = traj[:, self.social_stride - 1 :: self.social_stride, :]
+        poses = traj[:, cfg.social_stride - 1 :: cfg.social_stride, :]
         n_k = poses.shape[1]
         n_r = n_s * n_k  # robot poses
         rx, ry = poses[..., 0].ravel(), poses[..., 1].ravel()
         dist = np.hypot(*(tr.xy - k.pose[:2]).T)
-        near = np.argsort(dist)[: self.social_people]
-        near = near[dist[near] < self.social_range]
+        near = np.argsort(dist)[: cfg.social_people]
+        near = near[dist[near] < cfg.social_range]
         if near.size:
-            t = (np.arange(n_k) + 1) * self.social_stride * self.sim_dt
+            t = (np.arange(n_k) + 1) * cfg.social_stride * cfg.sim_dt
             vel = tr.velocity[near]
-            moving = np.where(np.hypot(*vel.T)[:, None] >= self.standing_speed, vel, 0.0)
+            moving = np.where(np.hypot(*vel.T)[:, None] >= cfg.standing_speed, vel, 0.0)
             pxy = tr.xy[near][None, :, :] + t[:, None, None] * moving[None, :, :]  # (K, P, 2)
             n_p = near.size
             cov = tr.covariance[near]
@@ -294,10 +329,10 @@ class SocialDWA(DWA):
                 p.robot_max_speed, p.robot_circumradius, p.person_occupancy_radius, False,
                 psi, dirv,
             )  # fmt: skip
-            social += self.w_psi * psi.reshape(n_s, n_k, n_p).max(axis=2).mean(axis=1)
-            social += self.w_dir * dirv.reshape(n_s, n_k, n_p).max(axis=2).mean(axis=1)
+            social += cfg.w_psi * psi.reshape(n_s, n_k, n_p).max(axis=2).mean(axis=1)
+            social += cfg.w_dir * dirv.reshape(n_s, n_k, n_p).max(axis=2).mean(axis=1)
         g = self._ellipses.shape[0]
-        if g and self.w_fsi > 0:
+        if g and cfg.w_fsi > 0:
             e, c = self._ellipses, self._gcov
             fsi = np.empty(n_r * g)
             kernels.group_terms(
@@ -306,5 +341,5 @@ class SocialDWA(DWA):
                         e[:, 0], e[:, 1], e[:, 2], e[:, 3], e[:, 4], c[:, 0], c[:, 1], c[:, 2])),
                 fsi,
             )  # fmt: skip
-            social += self.w_fsi * fsi.reshape(n_s, n_k, g).max(axis=2).mean(axis=1)
+            social += cfg.w_fsi * fsi.reshape(n_s, n_k, g).max(axis=2).mean(axis=1)
         return self._social_scale * social

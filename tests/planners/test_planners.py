@@ -20,6 +20,7 @@ from srpb_gym.planners import (
     Knowledge,
     SocialDWA,
     SocialForcePlanner,
+    command_to_action,
     dwa,
     global_planner,
     grid,
@@ -59,7 +60,7 @@ def test_registry() -> None:
     assert set(PLANNERS) >= {"go-to-goal", "dwa", "social-dwa", "social-force"}
     assert PLANNERS["dwa"] is DWA and PLANNERS["social-dwa"] is SocialDWA
     assert PLANNERS["social-force"] is SocialForcePlanner
-    assert isinstance(make_planner("social-dwa", w_psi=1.0), SocialDWA)
+    assert isinstance(make_planner("social-dwa", {"w_psi": 1.0}), SocialDWA)
     with pytest.raises(KeyError):
         make_planner("no-such-planner")
 
@@ -80,7 +81,7 @@ def test_global_path_through_the_door_clear_of_walls() -> None:
     planner.reset(knowledge)
     path = planner.plan(knowledge)
     assert np.allclose(path[0], knowledge.pose[:2]) and np.allclose(path[-1], knowledge.goal[:2])
-    assert np.all(np.hypot(*np.diff(path, axis=0).T) <= planner.spacing + 1e-9)
+    assert np.all(np.hypot(*np.diff(path, axis=0).T) <= planner.config.spacing + 1e-9)
     # exact distance of every path point to every wall segment
     walls = knowledge.walls
     a, b = walls[None, :, :2], walls[None, :, 2:]
@@ -189,3 +190,47 @@ def test_social_costs_grow_towards_people() -> None:
         traj[i, :, 2], traj[i, :, 3] = heading, 0.5
     cost = planner._social_costs(knowledge, traj)
     assert cost[0] > cost[1] >= 0.0
+
+
+def wall_clearance(points: np.ndarray, walls: np.ndarray) -> np.ndarray:
+    """Exact distance [m] of each point (N, 2) to the nearest wall segment."""
+    a, b = walls[None, :, :2], walls[None, :, 2:]
+    ab = b - a
+    u = np.clip(((points[:, None, :] - a) * ab).sum(-1) / (ab * ab).sum(-1), 0.0, 1.0)
+    return np.hypot(*(points[:, None, :] - (a + u[..., None] * ab)).transpose(2, 0, 1)).min(1)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_dwa_drives_a_large_robot(seed: int) -> None:
+    """The robot's size comes from its config: a 0.45 m robot reaches the goal without a
+    collision, its global planner inflates the walls by 0.45 m plus bumper and margin,
+    and path and trajectory keep at least 0.45 m from every wall."""
+    env = gym.make(IDS["corridor"], robot={"radius": 0.45})
+    env.reset(seed=seed, options={"people": False})
+    knowledge = env.unwrapped.knowledge()
+    robot = knowledge.robot
+    assert robot.radius == 0.45
+    planner = make_planner("dwa")
+    planner.reset(knowledge)
+    gp = planner.planner
+    assert gp.robot_radius == robot.radius + robot.bumper
+    lethal = robot.radius + robot.bumper + gp.config.margin
+    cost, dist = gp.static_cost.ravel(), gp.dist.ravel()
+    cells = np.arange(cost.shape[0]) != gp.cell(*knowledge.goal[:2])  # the goal: reachable
+    assert np.all(cost[cells & (dist < lethal)] >= gp.config.lethal_cost)
+    assert np.all(cost[cells & (dist > lethal)] < gp.config.lethal_cost)
+    assert np.any((dist > 0.3) & (dist < 0.45))  # lethal for this robot, not a default one
+    path = gp.plan(knowledge)
+    assert wall_clearance(path, knowledge.walls).min() >= robot.radius
+
+    _, poses, info = run(env, planner, seed=seed, options={"people": False})
+    assert info["is_success"] and not info["collision"]
+    assert wall_clearance(poses[:, :2], knowledge.walls).min() >= robot.radius
+
+
+def test_command_to_action_of_a_base_that_cannot_reverse() -> None:
+    from srpb_gym.sim.robot import RobotConfig
+
+    robot = RobotConfig(v_min=0.0)
+    assert command_to_action(-0.1, 0.0, 0.0, robot).tolist() == [0.0, 0.0]
+    assert command_to_action(-0.05, 0.0, 0.0, RobotConfig()).tolist() == [-0.5, 0.0]
