@@ -1,25 +1,28 @@
 """Run planners over seeded episodes of the scenarios and print their outcome statistics.
 
     python scripts/tune_planners.py --planners dwa social-dwa --scenarios corridor fformation \
-        --seeds 20
+        --seeds 20 --planner-param dwa.horizon=2.5 --planner-param social-dwa.w_psi=6
 
 For each planner and scenario: success, collision and timeout rates over the seeds
 0..N-1 and the median SRPB metrics m_psi, m_fsi, m_dir [%] and m_mef [s] (tracked
-people). ``--param NAME=VALUE`` passes keyword arguments to the planners' constructors
-(numbers are parsed), ``--verbose`` prints every episode.
+people), and the median decision time [ms]. Episodes run through the evaluation harness's
+loop (:func:`srpb_gym.evaluation.run_episode`). Planner settings are given as for
+``srpb-gym eval``: ``--planner-config FILE`` (YAML, ``{NAME: {FIELD: VALUE}}``) and
+``--planner-param NAME.FIELD=VALUE`` on top. ``--verbose`` prints every episode.
 """
 
 from __future__ import annotations
 
 import argparse
-import ast
-import time
 
 import gymnasium as gym
 import numpy as np
 
 import srpb_gym  # noqa: F401 - registers the environments
-from srpb_gym.planners import PLANNERS, make_planner
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation import run_episode
+from srpb_gym.planners import PLANNERS, Planner, check_settings, make_planner, planner_config
+from srpb_gym.planners.config import planner_settings
 
 IDS = {
     "corridor": "SRPB-Corridor-v0",
@@ -31,27 +34,19 @@ IDS = {
 METRICS = ("m_psi", "m_fsi", "m_dir", "m_mef")
 
 
-def run_episode(env: gym.Env, planner, seed: int, people: bool = True) -> dict[str, float]:
-    """One episode; returns its outcome, SRPB metrics and the planner's decision times."""
-    obs, _ = env.reset(seed=seed, options=None if people else {"people": False})
-    planner.reset(env.unwrapped.knowledge())
-    times = []
-    while True:
-        knowledge = env.unwrapped.knowledge()
-        t0 = time.perf_counter()
-        action = planner.act(obs, knowledge)
-        times.append(time.perf_counter() - t0)
-        obs, _, terminated, truncated, info = env.step(action)
-        if terminated or truncated:
-            break
-    out = {
+def episode_row(env: gym.Env, planner: Planner, seed: int, people: bool = True) -> dict:
+    """One episode's outcome (1.0 or 0.0), SRPB metrics and median decision time [ms]."""
+    times: list[float] = []
+    options = None if people else {"people": False}
+    out = run_episode(env, planner, seed, options=options, on_act=times.append)
+    info = out["info"]
+    row = {
         "success": float(info["is_success"]),
-        "collision": float(info["collision"]),
-        "timeout": float(truncated),
+        "collision": float(out["collision"]),
+        "timeout": float(out["timeout"]),
         "act_ms": 1000.0 * float(np.median(times)),
     }
-    out |= {m: float(info[f"srpb/{m}"]) for m in METRICS}
-    return out
+    return row | {m: float(info[f"srpb/{m}"]) for m in METRICS}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -60,27 +55,28 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--scenarios", nargs="+", default=list(IDS), choices=list(IDS))
     ap.add_argument("--seeds", type=int, default=20, help="seeds 0..N-1")
     ap.add_argument("--first-seed", type=int, default=0)
-    ap.add_argument("--param", action="append", default=[], help="NAME=VALUE for the planner")
+    ap.add_argument("--planner-config", metavar="FILE", help="YAML file of planner settings")
+    ap.add_argument("--planner-param", action="append", default=[], metavar="NAME.FIELD=VALUE",
+                    help="one planner setting, e.g. dwa.horizon=2.5 (repeatable)")  # fmt: skip
     ap.add_argument("--no-people", action="store_true", help="empty variants of the scenarios")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
-    kwargs = {}
-    for item in args.param:
-        key, value = item.split("=", 1)
-        try:
-            kwargs[key] = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            kwargs[key] = value
+    try:
+        settings = check_settings(planner_settings(args.planner_config, args.planner_param))
+        for name in args.planners:
+            planner_config(name, settings.get(name))
+    except (InputError, KeyError) as exc:
+        ap.error(str(exc))
     header = f"{'planner':<13}{'scenario':<11}{'succ':>6}{'coll':>6}{'tout':>6}"
     header += "".join(f"{m:>9}" for m in METRICS) + f"{'act ms':>8}"
     print(header)
     for name in args.planners:
         for scenario in args.scenarios:
             env = gym.make(IDS[scenario])
-            planner = make_planner(name, **kwargs) if name != "go-to-goal" else make_planner(name)
+            planner = make_planner(name, settings.get(name))
             rows = []
             for seed in range(args.first_seed, args.first_seed + args.seeds):
-                row = run_episode(env, planner, seed, people=not args.no_people)
+                row = episode_row(env, planner, seed, people=not args.no_people)
                 rows.append(row)
                 if args.verbose:
                     flags = "S" if row["success"] else ("C" if row["collision"] else "T")

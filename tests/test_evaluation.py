@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from srpb_gym.cli import main
-from srpb_gym.evaluation import resolve_config
+from srpb_gym.evaluation import resolve_config, run_episode
 from srpb_gym.evaluation.stats import CSV_COLUMNS, cell
 from srpb_gym.metrics import METRIC_NAMES, MetricParams, evaluate
 from srpb_gym.metrics.io_npz import load_record
@@ -139,6 +139,34 @@ def test_defaults_resolve(tmp_path):
     assert [p.name for p in config.planners] == list(PLANNERS)
 
 
+def test_planner_settings_are_used_and_stored(tmp_path):
+    settings = tmp_path / "planners.yaml"
+    settings.write_text("go-to-goal:\n  k_turn: 3\n  slow_radius: 0.5\ndwa:\n  horizon: 1.5\n")
+    out = tmp_path / "settings"
+    assert _eval(out, "--episodes", "1", "--planner-config", str(settings),
+                 "--planner-param", "go-to-goal.slow_radius=0.8") == 0  # fmt: skip
+    planner = json.loads((out / "config.json").read_text())["planners"][0]
+    assert planner["config"] == {"k_turn": 3, "slow_radius": 0.8}
+    assert planner["params"] == {"k_turn": 3.0, "slow_radius": 0.8}
+    settings = {"dwa": {"global_planner": {"spacing": 0.2}}}
+    spec = resolve_config([ENV], ["dwa"], out=str(tmp_path / "r"), planner_settings=settings)
+    dwa = spec.planners[0].build()
+    assert dwa.planner.config.spacing == 0.2
+    assert spec.planners[0].describe(dwa)["params"]["global_planner"]["spacing"] == 0.2
+
+
+def test_run_episode_options_and_timing():
+    import gymnasium as gym
+
+    env = gym.make(ENV)
+    times: list[float] = []
+    out = run_episode(env, GoToGoal(), 3, options={"people": False}, on_act=times.append)
+    assert out["info"]["is_success"] and len(times) == out["steps"] > 0
+    assert all(t >= 0.0 for t in times) and out["reset_time"] >= 0.0
+    assert env.unwrapped.knowledge().tracks.xy.shape[0] == 0
+    env.close()
+
+
 # ---------------------------------------------------------------------------- bad input
 @pytest.mark.parametrize(
     ("args", "expected"),
@@ -149,6 +177,11 @@ def test_defaults_resolve(tmp_path):
         (["--policy", "garbage.zip"], "garbage.zip: --policy: not a stable-baselines3 PPO model"),
         (["--out", "a_file.txt"], "--out: a_file.txt is an existing file"),
         (["--episodes", "0"], "--episodes: must be at least 1, got 0"),
+        (["--planner-param", "go-to-goal.k_turnn=3"], "planner.go-to-goal.k_turnn: unknown key"),
+        (["--planner-param", "go-to-goal.k_turn=-3"], "planner.go-to-goal.k_turn: must be a"),
+        (["--planner-param", "k_turn=3"], "--planner-param: expected PLANNER.FIELD=VALUE"),
+        (["--planner-param", "teleport.x=1"], "planner.teleport: unknown planner 'teleport'"),
+        (["--planner-config", "missing.yaml"], "missing.yaml: --planner-config: cannot read"),
     ],
 )
 def test_bad_arguments_exit_2(args, expected, tmp_path, monkeypatch, capsys):

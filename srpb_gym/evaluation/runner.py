@@ -16,7 +16,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -62,15 +62,28 @@ def tasks_of(config: EvalConfig) -> list[Task]:
 
 
 def run_episode(
-    env: Any, planner: Planner, seed: int, on_frame: Callable[[Any], None] | None = None
+    env: Any,
+    planner: Planner,
+    seed: int,
+    on_frame: Callable[[Any], None] | None = None,
+    *,
+    options: Mapping[str, Any] | None = None,
+    on_act: Callable[[float], None] | None = None,
 ) -> dict[str, Any]:
-    """Drive one episode of ``env`` with ``planner``; the planner's ``act`` is timed and
-    its time passed to ``set_planning_time``. ``on_frame`` receives ``env.render()`` after
-    the reset and every step. Returns the last ``info``, ``collision`` (any step),
-    ``timeout`` (truncated, not terminated) and ``steps``."""
+    """Drive one episode of ``env`` (``env.reset(seed=seed, options=options)``, e.g.
+    ``options={"people": False}`` for the empty variant) with ``planner``.
+
+    The planner's ``act`` is timed with :func:`time.perf_counter` and its duration [s]
+    passed to ``set_planning_time`` before each step and to ``on_act`` (when given).
+    ``on_frame`` receives ``env.render()`` after the reset and every step. Returns the last
+    ``info``, ``collision`` (any step), ``timeout`` (truncated, not terminated), ``steps``
+    and ``reset_time``, the duration of ``planner.reset`` [s].
+    """
     base = env.unwrapped
-    obs, info = env.reset(seed=seed)
+    obs, info = env.reset(seed=seed, options=None if options is None else dict(options))
+    started = time.perf_counter()
     planner.reset(base.knowledge())
+    reset_time = time.perf_counter() - started
     if on_frame is not None:
         on_frame(env.render())
     collided, steps = False, 0
@@ -78,7 +91,10 @@ def run_episode(
         knowledge = base.knowledge()
         started = time.perf_counter()
         action = planner.act(obs, knowledge)
-        base.set_planning_time(time.perf_counter() - started)
+        duration = time.perf_counter() - started
+        base.set_planning_time(duration)
+        if on_act is not None:
+            on_act(duration)
         obs, _, terminated, truncated, info = env.step(action)
         collided |= bool(info["collision"])
         steps += 1
@@ -87,7 +103,7 @@ def run_episode(
         if terminated or truncated:
             break
     return {"info": info, "collision": collided, "timeout": bool(truncated and not terminated),
-            "steps": steps}  # fmt: skip
+            "steps": steps, "reset_time": reset_time}  # fmt: skip
 
 
 class Workspace:
