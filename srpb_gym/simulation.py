@@ -25,12 +25,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from srpb_gym.config import from_spec
-from srpb_gym.metrics.record import EpisodeRecord
+from srpb_gym.metrics.record import SAMPLES, EpisodeRecord
 from srpb_gym.perception.detector import DetectorConfig, PeopleDetector
 from srpb_gym.perception.groups import seen_groups
 from srpb_gym.perception.lidar import Lidar, LidarConfig
+from srpb_gym.perception.sensing import sense
 from srpb_gym.perception.tracker import KalmanTracker, TrackerConfig
-from srpb_gym.sim import geometry
 from srpb_gym.sim.crowd import Crowd, SocialForceConfig
 from srpb_gym.sim.layout import EpisodeLayout
 from srpb_gym.sim.recording import GROW_TRACK_PERSON, GROW_TRACKED, MIN_GROUP, OK, record_sample
@@ -108,6 +108,7 @@ class Simulation:
         self._low, self._high = low, high
         c = self.robot_config
         self._acc = np.array([c.acc_lin, c.acc_lin, c.acc_ang])
+        self._exact_distance = self.config.obstacle_distance == "exact"
 
     @classmethod
     def from_scenario(
@@ -171,13 +172,15 @@ class Simulation:
         self._group_scratch = np.zeros((5, self.tracker_config.max_tracks), dtype=np.int64)
 
     def _robot_state(self, goal: Sequence[float]) -> RobotState:
+        lidar = Lidar(self.lidar_config)
         return RobotState(
-            Lidar(self.lidar_config),
+            lidar,
             PeopleDetector(self.detector_config),
             KalmanTracker(self.tracker_config),
             EpisodeRecord(),
             EpisodeRecord(),
             np.asarray(goal, dtype=np.float64),
+            lidar.arrays[-1],  # the scan buffer, rewritten every step
         )
 
     # ------------------------------------------------------------------ step
@@ -234,34 +237,28 @@ class Simulation:
         self.circles[: self.n_people, :2] = self.world.people_xy
         self.circles[self.n_people :, :2] = pose[:, :2]
         for r, state in enumerate(self.robots):
-            self._sense(r, state, pose[r])
+            detected = self._sense(r, state)
+            self._track(state, detected)
+            self._record(r, state)
 
-    def _sense(self, r: int, state: RobotState, pose: NDArray[np.float64]) -> None:
-        x, y, yaw = float(pose[0]), float(pose[1]), float(pose[2])
-        skip = self.n_people + r
-        state.scan = state.lidar.scan(x, y, yaw, self.walls, self.circles, skip, self.rng)
-        if self.config.obstacle_distance == "exact":
-            d = geometry.point_obstacle_distance(x, y, self.walls, self.circles, skip)
-        else:
-            d = float(state.scan.min())
-        self.obstacle_dist[r] = d
-        det = state.detector.detect(
-            x,
-            y,
-            yaw,
-            self.world.people_xy,
-            self.crowd.yaw,
-            self.circles,
-            skip,
-            self._people_circle,
-            self.walls,
-            self.rng,
-        )
-        first = state.record.n_samples == 0
-        state.tracker.step(0.0 if first else self.config.control_dt, det.xy, det.yaw, det.std)
-        self._record(r, state, det.index)
+    def _sense(self, r: int, state: RobotState) -> int:
+        """Lidar scan, obstacle distance and people detection of robot ``r`` (one compiled
+        call); returns the number of detections."""
+        state.lidar.draw(self.rng)
+        state.detector.draw(self.rng, self.n_people)
+        world = self.world
+        return sense(world.robot_pose, r, self.walls, self.circles, self.n_people + r,
+                     self._exact_distance, self.obstacle_dist, *state.lidar.arrays,
+                     world.people_xy, self.crowd.yaw, self._people_circle,
+                     *state.detector.arrays)  # fmt: skip
 
-    def _record(self, r: int, state: RobotState, det_index: NDArray[np.int64]) -> None:
+    def _track(self, state: RobotState, detected: int) -> None:
+        """Fuse the robot's detections of this step into its tracker."""
+        dt = self.config.control_dt if state.record.counts[SAMPLES] else 0.0
+        xy, yaw, std = state.detector.arrays[-3:]
+        state.tracker.fuse(dt, xy, yaw, std, detected)
+
+    def _record(self, r: int, state: RobotState) -> None:
         """Append this step's sample to both records of robot ``r`` (one compiled call)."""
         pt = self._planning_time
         if pt is None:
@@ -269,12 +266,13 @@ class Simulation:
         elif not isinstance(pt, float):
             pt = np.ravel(pt)
             pt = float(pt[r] if pt.size > 1 else pt[0])
-        rec, gt, world = state.record, state.gt_record, self.world
+        rec, gt, world, crowd = state.record, state.gt_record, self.world, self.crowd
+        detected_person = state.detector.arrays[5]  # true index of each detection
         while True:
             code = record_sample(
                 self.t, world.robot_pose, self.velocity, r, state.goal, self.obstacle_dist, pt,
-                *state.tracker.arrays, det_index, state.track_person, self.crowd.formation_of,
-                self._form_counts, self._group_scratch, world.people_xy, self.crowd.yaw,
+                *state.tracker.arrays, detected_person, state.track_person, crowd.formation_of,
+                self._form_counts, self._group_scratch, world.people_xy, crowd.yaw,
                 world.people_velocity, *self._gt_groups, rec.tables, rec.counts, gt.tables,
                 gt.counts,
             )  # fmt: skip

@@ -137,7 +137,7 @@ def visible_people(
 
 
 @njit(cache=True, error_model="numpy")
-def _detect(
+def detect_kernel(
     x: float, y: float, yaw: float, people_xy: np.ndarray, people_yaw: np.ndarray,
     segs: np.ndarray, circles: np.ndarray, skip: int, people_circle: np.ndarray,
     limits: np.ndarray, occlusion: bool, uniform: np.ndarray, normal: np.ndarray,
@@ -190,6 +190,18 @@ class PeopleDetector:
         self._yaw = np.empty(n)
         self._std = np.empty(n)
         self._no_circle = np.full(n, -1, dtype=np.int64)
+        #: what :func:`detect_kernel` takes after the people circles: limits, occlusion,
+        #: the draws, then the outputs (visible, then the first rows of index, xy, yaw, std)
+        self.arrays = (self._limits, bool(self.config.occlusion), self._uniform, self._normal,
+                       self.visible, self._index, self._xy, self._yaw, self._std)  # fmt: skip
+
+    def draw(self, rng: np.random.Generator, people: int) -> None:
+        """Draw the numbers of the next detection of ``people`` people: ``people``
+        uniforms, then ``3 people`` standard normals."""
+        if people != self._size:
+            self._resize(people)
+        rng.random(out=self._uniform)
+        rng.standard_normal(out=self._normal)
 
     def detect(
         self,
@@ -211,17 +223,11 @@ class PeopleDetector:
         (``None``: no person has one), ``skip`` the robot's own circle. After the call,
         ``self.visible`` (P,) tells who was in view before the miss draw.
         """
-        n = people_xy.shape[0]
-        if n != self._size:
-            self._resize(n)
+        self.draw(rng, people_xy.shape[0])
         if people_circle is None:
             people_circle = self._no_circle
-        rng.random(out=self._uniform)
-        rng.standard_normal(out=self._normal)
-        d = _detect(float(x), float(y), float(yaw), people_xy, people_yaw, segs, circles,
-                    int(skip), people_circle, self._limits, self.config.occlusion,
-                    self._uniform, self._normal, self.visible,
-                    self._index, self._xy, self._yaw, self._std)  # fmt: skip
+        d = detect_kernel(float(x), float(y), float(yaw), people_xy, people_yaw, segs, circles,
+                          int(skip), people_circle, *self.arrays)  # fmt: skip
         return Detections(
             self._index[:d].copy(), self._xy[:d].copy(), self._yaw[:d].copy(), self._std[:d].copy()
         )

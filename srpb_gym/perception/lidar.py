@@ -93,13 +93,15 @@ def beam_angles(config: LidarConfig) -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def _scan(
-    x: float, y: float, yaw: float, angles: np.ndarray, beam_dirs: np.ndarray,
-    segs: np.ndarray, circles: np.ndarray, skip: int, noise: np.ndarray, std: float,
-    range_min: float, range_max: float, true: np.ndarray, out: np.ndarray,
+def scan_kernel(
+    x: float, y: float, yaw: float, segs: np.ndarray, circles: np.ndarray, skip: int,
+    angles: np.ndarray, beam_dirs: np.ndarray, params: np.ndarray, noise: np.ndarray,
+    true: np.ndarray, out: np.ndarray,
 ) -> None:  # fmt: skip
-    """Ray-cast ``true``, then ``out = clip(true + std * noise, range_min, range_max)``;
-    beams that hit nothing stay at exactly ``range_max``."""
+    """Ray-cast ``true``, then ``out = clip(true + std * noise, range_min, range_max)``
+    (``params``: std, range_min, range_max); beams that hit nothing stay at exactly
+    ``range_max``."""
+    std, range_min, range_max = params[0], params[1], params[2]
     raycast_beams(x, y, yaw, angles, beam_dirs, range_max, segs, circles, skip, true)
     for b in range(true.shape[0]):
         r = true[b]
@@ -126,6 +128,20 @@ class Lidar:
         self.true_ranges = np.empty(n)
         self._noise = np.zeros(n)
         self._out = np.empty(n)
+        cfg = self.config
+        params = np.array([cfg.noise_std, cfg.range_min, cfg.range_max])
+        #: what :func:`scan_kernel` takes after the pose and the obstacles: beam angles and
+        #: directions, noise std and range limits, noise, true ranges, output ranges
+        self.arrays = (self.angles, self._beam_dirs, params, self._noise, self.true_ranges,
+                       self._out)  # fmt: skip
+
+    def draw(self, rng: np.random.Generator | None) -> None:
+        """Draw the range noise of the next scan (``n_beams`` standard normals from ``rng``,
+        none without noise)."""
+        if self.config.noise_std > 0.0:
+            if rng is None:
+                raise ValueError("a noisy lidar needs a numpy Generator (rng)")
+            rng.standard_normal(out=self._noise)
 
     @property
     def n_beams(self) -> int:
@@ -150,17 +166,11 @@ class Lidar:
         (``rng`` may be ``None`` otherwise). Without ``out`` the result is an internal
         buffer overwritten by the next scan: copy it to keep it.
         """
-        cfg = self.config
-        if out is None:
-            out = self._out
-        if cfg.noise_std > 0.0:
-            if rng is None:
-                raise ValueError("a noisy lidar needs a numpy Generator (rng)")
-            rng.standard_normal(out=self._noise)
-        _scan(float(x), float(y), float(yaw), self.angles, self._beam_dirs, segs, circles,
-              int(skip), self._noise, cfg.noise_std, cfg.range_min, cfg.range_max,
-              self.true_ranges, out)  # fmt: skip
-        return out
+        self.draw(rng)
+        angles, dirs, params, noise, true, own = self.arrays
+        scan_kernel(float(x), float(y), float(yaw), segs, circles, int(skip), angles, dirs,
+                    params, noise, true, own if out is None else out)  # fmt: skip
+        return own if out is None else out
 
     def hit_points(
         self, x: float, y: float, yaw: float, ranges: np.ndarray, out: np.ndarray | None = None
