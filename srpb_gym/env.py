@@ -26,6 +26,7 @@ from srpb_gym.perception.lidar import LidarConfig
 from srpb_gym.perception.tracker import TrackerConfig
 from srpb_gym.planners.base import Knowledge
 from srpb_gym.scenarios import load_scenario, sample
+from srpb_gym.scenarios.sampler import free_space_of
 from srpb_gym.sim.crowd import SocialForceConfig
 from srpb_gym.sim.layout import EpisodeLayout, RobotLayout
 from srpb_gym.sim.robot import RobotConfig
@@ -309,8 +310,22 @@ class SRPBNavEnv(gym.Env):
             robot = layout.robots[0]
             start = _pose_option(options.get("start", robot.start), "start")
             goal = _pose_option(options.get("goal", robot.goal), "goal")
+            self._check_poses(start, goal)
             layout = replace(layout, robots=(RobotLayout(start, goal),))
         return layout
+
+    def _check_poses(self, start: tuple[float, ...], goal: tuple[float, ...]) -> None:
+        """A start and goal from reset options must hold the robot and be connected."""
+        space = free_space_of(self.scenario)
+        radius = self.sim.robot_config.radius
+        for name, (x, y, _) in (("start", start), ("goal", goal)):
+            if not space.is_clear(x, y, radius):
+                raise InputError(f"a robot of radius {radius:g} m at ({x:g}, {y:g}) overlaps a "
+                                 f"wall, an obstacle or the world's edge",
+                                 key=f"options.{name}")  # fmt: skip
+        if space.label_at(*start[:2]) != space.label_at(*goal[:2]):
+            raise InputError(f"the goal is not reachable from the start for a robot of radius "
+                             f"{radius:g} m", key="options.goal")  # fmt: skip
 
 
 class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -362,6 +377,7 @@ def _pose_option(value: Any, name: str) -> tuple[float, float, float]:
         pose = tuple(float(v) for v in value)
     except (TypeError, ValueError):
         pose = ()
-    if len(pose) != 3:
-        raise InputError(f"expected (x, y, yaw), got {value!r}", key=f"options.{name}")
+    if len(pose) != 3 or not all(map(math.isfinite, pose)):
+        raise InputError(f"expected (x, y, yaw), three finite numbers [m, m, rad], got "
+                         f"{value!r}", key=f"options.{name}")  # fmt: skip
     return pose  # type: ignore[return-value]

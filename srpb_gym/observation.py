@@ -32,6 +32,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym.config import from_spec
+from srpb_gym.errors import InputError
 
 OBSERVATION_TYPES = ("flat", "dict")
 GOAL, VELOCITY, PERSON = 5, 3, 7
@@ -121,7 +122,10 @@ class ObservationBuilder:
     def __init__(self, config: ObservationConfig, n_beams: int, range_max: float,
                  v_scale: float, vy_scale: float, w_max: float) -> None:  # fmt: skip
         self.config = config
-        bins = min(config.lidar_bins, n_beams)
+        if config.lidar_bins > n_beams:
+            raise InputError(f"{config.lidar_bins} lidar sectors need at least as many beams; "
+                             f"the lidar has {n_beams}", key="observation.lidar_bins")  # fmt: skip
+        bins = config.lidar_bins
         self.edges = np.linspace(0, n_beams, bins + 1).round().astype(np.int64)
         self.range_max = float(range_max)
         self.vel_scale = np.array([v_scale, vy_scale if vy_scale > 0 else v_scale, w_max])

@@ -291,11 +291,44 @@ def test_holonomic_robot_has_three_action_dims():
         ({"metrics": {"params": {"safety": 1.0}}}, "unknown metric parameter"),
         ({"sensors": {"sonar": "x"}}, "sensors.sonar: unknown sensor"),
         ({"sim": {"physics_dt": 0.03}}, "whole multiple"),
+        ({"observation": {"lidar_bins": 1000}}, "lidar_bins: 1000 lidar sectors need"),
+        ({"metrics": "paper"}, "metrics: expected a mapping"),
     ],
 )
 def test_bad_arguments(kwargs, message):
     with pytest.raises((ValueError, KeyError), match=message):
         gym.make("SRPB-Corridor-v0", **kwargs)
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        ({"start": (math.nan, 1.0, 0.0)}, r"options\.start: expected \(x, y, yaw\), three finite"),
+        ({"goal": (1.0, 1.0)}, r"options\.goal: expected \(x, y, yaw\)"),
+        ({"start": "here"}, r"options\.start: expected"),
+        ({"start": (50.0, 1.0, 0.0)}, r"options\.start: a robot of radius 0.275 m at \(50, 1\)"),
+        ({"start": (2.0, 0.1, 0.0)}, r"options\.start: a robot .* overlaps a wall"),
+        ({"goal": (5.0, 2.15, 0.0)}, r"options\.goal: a robot .* overlaps"),
+    ],
+)
+def test_reset_poses_are_checked(options, message):
+    env = make("SRPB-Corridor-v0")
+    with pytest.raises(ValueError, match=message):
+        env.reset(seed=0, options=options)
+
+
+def test_reset_goal_must_be_reachable(tmp_path):
+    room = tmp_path / "closet.yaml"
+    room.write_text(
+        "name: closet\nbounds: [0, 0, 10, 5]\n"
+        "walls: [[6, 1, 8, 1], [8, 1, 8, 4], [8, 4, 6, 4], [6, 4, 6, 1]]  # a closed box\n"
+        "robot: {start: {position: [1, 2.5], yaw_deg: 0}, goal: {position: [4, 2.5], "
+        "yaw_deg: 0}}\n"
+    )
+    env = gym.make("SRPB-Custom-v0", scenario=str(room))
+    env.reset(seed=0, options={"goal": (9.0, 2.5, 0.0)})  # around the box: reachable
+    with pytest.raises(ValueError, match=r"options\.goal: the goal is not reachable"):
+        env.reset(seed=0, options={"goal": (7.0, 2.5, 0.0)})  # inside the box
 
 
 def test_bad_reset_options():
@@ -307,7 +340,7 @@ def test_bad_reset_options():
 def test_collision_modes():
     for mode, expect_end in (("terminate", True), ("continue", False)):
         env = make("SRPB-Corridor-v0", collision=mode)
-        env.reset(seed=0, options={"people": False, "start": (2.0, 0.0, math.pi / 2)})
+        env.reset(seed=0, options={"people": False, "start": (2.0, 1.1, math.pi / 2)})
         ended, hit = False, False
         for _ in range(60):
             _, _reward, terminated, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
