@@ -6,7 +6,12 @@ SRPB records. Commands are random (held for 1 s); episodes reset at the time lim
 
     python benchmarks/bench_sim.py [--steps 20000] [--profile]
 
-``crowd-20`` is the crowd scenario with a layout of exactly 20 people.
+``crowd-20`` is the crowd scenario with a layout of exactly 20 people. After the rates it
+prints where one step's time goes (microseconds per step, each part timed around its call
+in the pipeline, best of 3 runs): physics (``World.step``: pymunk substeps and the batch
+reads and writes), crowd (``Crowd.desired_velocity`` and ``Crowd.sync``), sensing (lidar,
+obstacle distance, detection), tracker and records, and the rest of ``Simulation.step``
+(command limits, frame changes, measured velocity, bookkeeping).
 """
 
 from __future__ import annotations
@@ -19,11 +24,24 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Callable
 
 import numpy as np
 
 from srpb_gym.scenarios import load_scenario, sample
+from srpb_gym.sim.crowd import Crowd
+from srpb_gym.sim.world import World
 from srpb_gym.simulation import Simulation
+
+# parts of a step: (label, [(class, method), ...]); "total" is the whole step
+PARTS = (
+    ("physics", [(World, "step")]),
+    ("crowd", [(Crowd, "desired_velocity"), (Crowd, "sync")]),
+    ("sensing", [(Simulation, "_sense")]),
+    ("tracker", [(Simulation, "_track")]),
+    ("records", [(Simulation, "_record")]),
+    ("total", [(Simulation, "step")]),
+)
 
 STARTUP = (
     "import time; t0 = time.perf_counter(); import numpy as np; "
@@ -64,6 +82,43 @@ def run(lays: list, steps: int) -> float:
     return steps / (time.perf_counter() - t0)
 
 
+def _timed(fn: Callable, acc: list[int]) -> Callable:
+    clock = time.perf_counter_ns
+
+    def wrapper(*args, **kwargs):
+        t0 = clock()
+        out = fn(*args, **kwargs)
+        acc[0] += clock() - t0
+        return out
+
+    return wrapper
+
+
+def breakdown(lays: list, steps: int) -> dict[str, float]:
+    """Microseconds per control step spent in each of :data:`PARTS` (best of 3 runs), plus
+    "other": the total less the parts. The parts are timed by wrapping their methods."""
+    acc = {label: [0] for label, _ in PARTS}
+    saved = []
+    for label, methods in PARTS:
+        for cls, name in methods:
+            saved.append((cls, name, cls.__dict__[name]))
+            setattr(cls, name, _timed(cls.__dict__[name], acc[label]))
+    best: dict[str, float] = {}
+    try:
+        run(lays, steps // 10)
+        for _ in range(3):
+            for a in acc.values():
+                a[0] = 0
+            run(lays, steps)
+            if not best or acc["total"][0] < best["total"] * 1e3 * steps:
+                best = {label: a[0] / 1e3 / steps for label, a in acc.items()}
+    finally:
+        for cls, name, fn in saved:
+            setattr(cls, name, fn)
+    best["other"] = best["total"] - sum(v for k, v in best.items() if k != "total")
+    return best
+
+
 def startup() -> tuple[float, float]:
     """Seconds to import, build and step a crowd episode in a fresh process: with an empty
     numba cache (kernels compiled) and with the cache that run left (kernels loaded)."""
@@ -88,6 +143,10 @@ def main() -> None:
     for name, lays in cases.items():
         best = max(run(lays, args.steps) for _ in range(3))
         print(f"{name:>10}: {best:7.0f} control steps/s (best of 3 x {args.steps})")
+    for name, lays in cases.items():
+        parts = breakdown(lays, max(args.steps // 4, 100))
+        text = ", ".join(f"{k} {v:.1f}" for k, v in parts.items() if k != "total")
+        print(f"{name:>10}: {parts['total']:.1f} us per step (timed parts): {text}")
     if not args.no_startup:
         cold, warm = startup()
         print(f"start-up of a fresh process (import, build, 5 steps, evaluate): "
