@@ -4,20 +4,30 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 # The CPU build of torch; a plain `torch` requirement would pull the CUDA packages.
 TORCH ?= torch==2.13.0
+# what the demo needs (the package and its plots), and everything (training, tests, lint)
+DEMO_STAMP := $(VENV)/.installed-demo
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean setup
+.PHONY: demo test lint bench clean setup setup-demo
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml
+setup-demo: $(DEMO_STAMP)
+
+$(VENV)/bin/python:
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(DEMO_STAMP): pyproject.toml | $(VENV)/bin/python
+	$(BIN)/python -m pip install --quiet -e ".[plot]"
+	touch $(DEMO_STAMP)
+
+$(STAMP): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
 	$(BIN)/python -m pip install --quiet -e ".[train,plot,dev]"
-	touch $(STAMP)
+	touch $(DEMO_STAMP) $(STAMP)
 
-demo: $(STAMP)
+demo: $(DEMO_STAMP)
 	$(BIN)/srpb-gym eval
 
 test: $(STAMP)
