@@ -136,6 +136,12 @@ def test_version(capsys):
     assert code == 0 and out.strip() == f"srpb-gym {__version__}"
 
 
+def test_eval_help_lists_the_planner_settings(capsys):
+    code, out, _ = _run(capsys, "eval", "--help")
+    assert code == 0
+    assert "--planner-config FILE" in out and "--planner-param NAME.FIELD=VALUE" in out
+
+
 # ---------------------------------------------------------------------------- errors
 def _single_error_line(err: str) -> str:
     lines = err.strip().splitlines()

@@ -4,13 +4,18 @@ by the SRPB metrics, compared in tables like the SRPB paper's Table 4.
 Quick use::
 
     from srpb_gym.evaluation import resolve_config, run_evaluation
-    config = resolve_config(["SRPB-Corridor-v0"], ["go-to-goal"], episodes=5, out="runs/x")
+    config = resolve_config(["SRPB-Corridor-v0"], ["go-to-goal", "dwa"], episodes=5,
+                            out="runs/x", planner_settings={"dwa": {"horizon": 2.5}})
     outcome = run_evaluation(config)
     print(outcome.text)
 
+Planner settings are plain data, ``{planner name: {field: value}}`` (see
+``docs/planners.md``), checked before the first episode and stored in ``config.json``.
+
 Episode ``i`` uses ``env.reset(seed=seed + i)``, so any episode can be replayed alone; the
-planner's ``act`` is timed and its time handed to ``env.unwrapped.set_planning_time``; runs
-spread over worker processes give the same episodes. ``srpb-gym eval`` and
+planner's ``act`` is timed and its time handed to ``env.unwrapped.set_planning_time``
+(:func:`run_episode`, the one episode loop, also used by the benchmark and the tuning
+script); runs spread over worker processes give the same episodes. ``srpb-gym eval`` and
 ``srpb-gym compare`` are the command-line front ends. matplotlib, torch, stable-baselines3
 and pygame are imported only by the functions that need them.
 """

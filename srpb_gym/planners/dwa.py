@@ -62,12 +62,12 @@ class DWAConfig(PlannerConfig):
     w_path: float = 3.0  # 1/m, end point's distance to the path
     w_progress: float = 2.0  # 1/m, arc length gained along the path (subtracted)
     w_heading: float = 0.6  # 1/rad, end heading's error to the path point ``lookahead`` on
-    lookahead: float = 0.8  # m
+    lookahead: float = 0.8  # m, how far along the path the heading critic looks
     w_goal: float = 2.0  # 1/m, end point's distance to the goal when within reach
     w_clear: float = 0.5  # obstacle cost exp(-(clearance - safe) / clear_scale)
-    clear_scale: float = 0.15  # m
+    clear_scale: float = 0.15  # m, decay length of the obstacle cost
     w_people: float = 1.0  # people cost exp(-gap / people_scale), gap >= -0.5 m
-    people_scale: float = 0.45  # m
+    people_scale: float = 0.45  # m, decay length of the people cost
     w_speed: float = 0.2  # (1 - v / v_max)
     w_turn: float = 0.05  # |omega| / w_max
     w_smooth: float = 0.1  # |omega - previous omega| / w_max

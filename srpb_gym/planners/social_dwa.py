@@ -148,8 +148,8 @@ class SocialDWAConfig(DWAConfig):
     social_range: float = 5.0  # m, only people this close to the robot count, ...
     social_people: int = 6  # ... at most this many, the nearest
     # groups: standing tracks (slower than group_speed) within group_distance of another
-    group_distance: float = 2.0  # m
-    group_speed: float = 0.3  # m/s
+    group_distance: float = 2.0  # m, standing tracks this close to another form a group
+    group_speed: float = 0.3  # m/s, group members are slower than this
     group_memory: float = 10.0  # s, a group stays known this long after it was seen ...
     group_match: float = 1.0  # m, ... unless one is seen this close to it
     # cost layers of the global planner (per metre)
@@ -158,10 +158,9 @@ class SocialDWAConfig(DWAConfig):
     fsi_layer: float = 30.0  # O-spaces
     layer_spread: float = 1.5  # standing people's and groups' Gaussians this much wider
     layer_reach: float = 2.5  # m, personal spaces reach this far
-    # impatience: no progress for ``patience``: the social costs fade over another
-    # ``patience`` to ``min_scale`` times their weight
-    patience: float = 4.0  # s
-    min_scale: float = 0.25
+    # impatience
+    patience: float = 4.0  # s, no progress this long: the social costs fade over another
+    min_scale: float = 0.25  # ... patience to this fraction of their weight
     global_planner: GlobalPlannerConfig = field(
         default_factory=lambda: GlobalPlannerConfig(
             person_margin=0.1, heuristic_weight=1.5, replan_period=3.0, min_replan_interval=1.0

@@ -42,12 +42,12 @@ class SocialForceConfig(PlannerConfig):
     lookahead: float = 1.0  # m, towards the path point this far ahead
     approach_decel: float = 0.6  # m/s^2, slow down within this braking distance of the goal
     arrive_radius: float = 0.1  # m, closer to the goal: turn in place to its heading
-    # repulsion, added to the desired velocity times tau
-    tau: float = 0.5  # s
+    # repulsion
+    tau: float = 0.5  # s, the repulsions times this are added to the desired velocity
     a_person: float = 2.0  # m/s^2, a person's repulsion a exp(-gap / b) ...
     b_person: float = 0.35  # m, ... at the closest approach within ``anticipation``
     person_radius: float = PERSON_RADIUS  # m, assumed body radius of a tracked person
-    anticipation: float = 1.5  # s
+    anticipation: float = 1.5  # s, horizon of a person's closest approach
     anisotropy: float = 0.3  # weight of a person behind the robot (ahead: 1)
     a_obstacle: float = 2.0  # m/s^2, a wall's or lidar point's repulsion a exp(-d / b) ...
     b_obstacle: float = 0.15  # m, ... d the robot's clearance

@@ -4,6 +4,7 @@ from text (YAML files and NAME.FIELD=VALUE assignments)."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import pytest
 
@@ -158,3 +159,17 @@ def test_settings_file(tmp_path) -> None:
             load_settings(path)
     with pytest.raises(InputError, match="cannot read the file"):
         load_settings(tmp_path / "missing.yaml")
+
+
+def test_docs_list_every_setting_with_its_default() -> None:
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "planners.md").read_text()
+    inherited = {f.name for f in dataclasses.fields(DWAConfig)} - {"global_planner"}
+    for cls in CONFIGS:
+        section = doc.split(f"### `{cls.__name__}`")[1].split("\n### ")[0]
+        config = cls()
+        for field in dataclasses.fields(cls):
+            if cls is SocialDWAConfig and field.name in inherited:
+                continue
+            value = getattr(config, field.name)
+            shown = f"`{type(value).__name__}`" if dataclasses.is_dataclass(value) else f"`{value}`"
+            assert f"| `{field.name}` | {shown}" in section, (cls.__name__, field.name)
