@@ -25,6 +25,7 @@ from collections.abc import Sequence
 import numpy as np
 import pymunk
 import pymunk.batch as pb
+from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym.sim.robot import RobotConfig
@@ -96,7 +97,8 @@ class World:
         return body
 
     def _init_batch(self) -> None:
-        """Locate robots, control bodies and people in the batch body order."""
+        """Locate robots, control bodies and people in the batch body order; set up the
+        buffers of the batch reads and writes and the views into the body state."""
         buf = pb.Buffer()
         pb.get_space_bodies(self.space, pb.BodyFields.BODY_ID, buf)
         order = {int(i): k for k, i in enumerate(np.frombuffer(buf.int_buf(), dtype=np.uintp))}
@@ -104,15 +106,30 @@ class World:
         self._robot_rows = np.array([order[b.id] for b in self._robot_bodies], dtype=np.int64)
         self._control_rows = np.array([order[b.id] for b in self._controls], dtype=np.int64)
         self._people_rows = np.array([order[b.id] for b in self._people_bodies], dtype=np.int64)
-        self._state_buf = pb.Buffer()
-        self._set_buf = pb.Buffer()
-        # vx, vy, omega of every body, written in one batch call per control step
-        self._velocities = np.zeros((self._n_bodies, 3))
         f = pb.BodyFields
         self._fields_get = f.POSITION | f.ANGLE | f.VELOCITY | f.ANGULAR_VELOCITY
         self._fields_set = f.VELOCITY | f.ANGULAR_VELOCITY
+        self._state_buf = pb.Buffer()
+        # vx, vy, omega of every body, written in one batch call per step (people's omega
+        # stays 0); the batch buffer reads this array itself
+        self._velocities = np.zeros((self._n_bodies, 3))
+        self._set_buf = pb.Buffer()
+        self._set_buf.set_float_buf(self._velocities.reshape(-1))
         self.state = np.zeros((self._n_bodies, 6))  # x, y, angle, vx, vy, omega of every body
+        robots, people = _rows(self._robot_rows), _rows(self._people_rows)
+        #: whether the views below are refreshed in place (bodies in runs of the batch order)
+        self._views = isinstance(robots, slice) and isinstance(people, slice)
+        self._robot_index, self._people_index = robots, people
+        self._set_views()
         self.read_state()
+
+    def _set_views(self) -> None:
+        state, robots, people = self.state, self._robot_index, self._people_index
+        #: (R, 3) robot poses: x, y [m], yaw [rad] (not wrapped)
+        self.robot_pose = state[robots, :3]
+        #: (P, 2) people positions [m] and velocities [m/s]
+        self.people_xy = state[people, :2]
+        self.people_velocity = state[people, 3:5]
 
     def __getstate__(self) -> dict:
         # the batch buffers are C data: rebuilt after unpickling (body ids change too)
@@ -143,25 +160,42 @@ class World:
         """Advance ``substeps`` physics steps (default: one control step's worth) with
         ``robot_velocity`` (R, 3) world-frame commands (vx, vy, omega) for the control
         bodies and ``people_velocity`` (P, 2)."""
-        v = self._velocities
-        v[self._robot_rows] = self.state[self._robot_rows, 3:6]  # unchanged
-        v[self._control_rows] = robot_velocity
-        v[self._people_rows, :2] = people_velocity
-        v[self._people_rows, 2] = 0.0
-        self._set_buf.set_float_buf(v.reshape(-1))
+        _fill_velocities(self.state, self._robot_rows, self._control_rows, self._people_rows,
+                         robot_velocity, people_velocity, self._velocities)  # fmt: skip
         pb.set_space_bodies(self.space, self._fields_set, self._set_buf)
         for _ in range(self.substeps if substeps is None else substeps):
             self.space.step(self.physics_dt)
         self.read_state()
 
     def read_state(self) -> None:
-        """Refresh :attr:`state` and the views below from the space (one batch call)."""
+        """Refresh :attr:`state` and the views of it (``robot_pose``, ``people_xy``,
+        ``people_velocity``, updated in place) from the space (one batch call)."""
         self._state_buf.clear()
         pb.get_space_bodies(self.space, self._fields_get, self._state_buf)
-        state = np.frombuffer(self._state_buf.float_buf(), dtype=np.float64).reshape(-1, 6)
-        self.state[:] = state
-        #: (R, 3) robot poses: x, y [m], yaw [rad] (not wrapped)
-        self.robot_pose = self.state[self._robot_rows, :3]
-        #: (P, 2) people positions [m] and velocities [m/s]
-        self.people_xy = self.state[self._people_rows, :2]
-        self.people_velocity = self.state[self._people_rows, 3:5]
+        self.state.reshape(-1)[:] = np.frombuffer(self._state_buf.float_buf(), dtype=np.float64)
+        if not self._views:
+            self._set_views()
+
+
+def _rows(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
+    """``rows`` as a slice when they are consecutive (then indexing gives a view)."""
+    if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
+        return slice(int(rows[0]), int(rows[0]) + rows.size)
+    return rows if rows.size else slice(0, 0)
+
+
+@njit(cache=True, error_model="numpy")
+def _fill_velocities(state, robot_rows, control_rows, people_rows, robot_vel, people_vel, out):
+    """Velocities of every body for the batch write: robots keep theirs, control bodies get
+    the commands, people the crowd's."""
+    for k in range(robot_rows.shape[0]):
+        out[robot_rows[k], 0] = state[robot_rows[k], 3]
+        out[robot_rows[k], 1] = state[robot_rows[k], 4]
+        out[robot_rows[k], 2] = state[robot_rows[k], 5]
+    for k in range(control_rows.shape[0]):
+        out[control_rows[k], 0] = robot_vel[k, 0]
+        out[control_rows[k], 1] = robot_vel[k, 1]
+        out[control_rows[k], 2] = robot_vel[k, 2]
+    for k in range(people_rows.shape[0]):
+        out[people_rows[k], 0] = people_vel[k, 0]
+        out[people_rows[k], 1] = people_vel[k, 1]
