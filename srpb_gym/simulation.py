@@ -109,6 +109,7 @@ class Simulation:
         c = self.robot_config
         self._acc = np.array([c.acc_lin, c.acc_lin, c.acc_ang])
         self._exact_distance = self.config.obstacle_distance == "exact"
+        self._lateral = self.robot_config.kinematics == "holonomic"
 
     @classmethod
     def from_scenario(
@@ -191,45 +192,31 @@ class Simulation:
         is ignored by a differential drive); clipped to the limits. ``planning_time``: (R,)
         computation time [s] of each command, stored with the sample it was decided at.
         """
-        cmd = np.asarray(commands, dtype=np.float64).reshape(self.n_robots, 3)
-        if self.robot_config.kinematics == "diff":
-            cmd = cmd.copy()
-            cmd[:, 1] = 0.0
+        cmd = np.asarray(commands, dtype=np.float64)
+        if cmd.shape != self.command.shape:
+            cmd = cmd.reshape(self.n_robots, 3)
         self._planning_time = planning_time
-        dt = self.config.control_dt
-        limit_commands(cmd, self.command, self._low, self._high, self._acc, dt, self.command)
-        before = self.world.robot_pose.copy()
+        dt, world = self.config.control_dt, self.world
+        limit_commands(cmd, self.command, self._low, self._high, self._acc, dt, self._lateral,
+                       self.command)  # fmt: skip
+        before = world.robot_pose.copy()
         self._advance_physics()
-        after = self.world.robot_pose
-        measure_velocity(
-            before[:, 0],
-            before[:, 1],
-            before[:, 2],
-            after[:, 0],
-            after[:, 1],
-            after[:, 2],
-            dt,
-            self.velocity,
-        )
+        measure_velocity(before, world.robot_pose, dt, self.velocity)
         self.steps += 1
         self.t = self.steps * dt
         self._sense_and_record()
 
     def _advance_physics(self) -> None:
-        cfg, world = self.config, self.world
+        cfg, world, crowd = self.config, self.world, self.crowd
         rounds, sub = (cfg.substeps, 1) if cfg.crowd_every_substep else (1, cfg.substeps)
         world.collisions[:] = False
         dt = cfg.physics_dt * sub
         for k in range(rounds):
-            pose = world.robot_pose
-            body_to_world(self.command, pose[:, 2], dt, self._world_cmd)
-            robot_xy = np.ascontiguousarray(pose[:, :2])
-            robot_v = np.ascontiguousarray(self._world_cmd[:, :2])
-            v = self.crowd.desired_velocity(
-                self.t + k * dt, dt, robot_xy, robot_v, self._robot_radius, self.walls, self.rng
-            )
+            body_to_world(self.command, world.robot_pose, dt, self._world_cmd)
+            v = crowd.desired_velocity(self.t + k * dt, dt, world.robot_pose, self._world_cmd,
+                                       self._robot_radius, self.walls, self.rng)  # fmt: skip
             world.step(self._world_cmd, v, sub)
-            self.crowd.sync(world.people_xy, world.people_velocity)
+            crowd.sync(world.people_xy, world.people_velocity)
 
     # ------------------------------------------------------------------ sensing
     def _sense_and_record(self) -> None:

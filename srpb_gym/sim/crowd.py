@@ -517,8 +517,9 @@ class Crowd:
     ) -> NDArray[np.float64]:  # fmt: skip
         """The (P, 2) velocities [m/s] to apply to the people for the next ``dt`` seconds.
 
-        ``t``: time since :meth:`reset` [s] (start delays); robots: float64 C-contiguous
-        (R, 2) positions, (R, 2) velocities, (R,) radii (R may be 0). ``walls`` (S, 4) and
+        ``t``: time since :meth:`reset` [s] (start delays); robots: float64 (R, 2)
+        positions and (R, 2) velocities (or wider tables whose first two columns are x and
+        y, such as poses), (R,) radii (R may be 0). ``walls`` (S, 4) and
         ``rng`` (drives the formation jitter) default to those given to :meth:`reset`. The
         returned buffer is reused by the next call: copy it or use it at once.
         """

@@ -82,39 +82,43 @@ PRESETS: dict[str, RobotConfig] = {
 
 
 @njit(cache=True, error_model="numpy")
-def limit_commands(target, previous, low, high, acc, dt, out):
+def limit_commands(target, previous, low, high, acc, dt, lateral, out):
     """Clip body-frame commands (R, 3) to [low, high], then to within acc * dt of the
-    previous command; ``acc`` = (acc_lin, acc_lin, acc_ang)."""
+    previous command; ``acc`` = (acc_lin, acc_lin, acc_ang). Without ``lateral`` (a
+    differential drive) the vy command is taken as 0 whatever ``target`` says."""
     for r in range(target.shape[0]):
         for k in range(3):
-            v = min(max(target[r, k], low[k]), high[k])
+            v = target[r, k] if lateral or k != 1 else 0.0
+            v = min(max(v, low[k]), high[k])
             step = acc[k] * dt
             out[r, k] = min(max(v, previous[r, k] - step), previous[r, k] + step)
 
 
 @njit(cache=True, error_model="numpy")
-def measure_velocity(x0, y0, yaw0, x1, y1, yaw1, dt, out):
-    """Body-frame (vx, vy, omega) of the motion from pose 0 to pose 1 over ``dt``.
+def measure_velocity(before, after, dt, out):
+    """Body-frame (vx, vy, omega) of each robot's motion from pose ``before[r]`` to pose
+    ``after[r]`` (x, y, yaw) over ``dt``.
 
     The displacement is expressed in the frame of the mid-step heading, so a base that
     drives an arc of constant curvature measures vy = 0.
     """
-    for r in range(x0.shape[0]):
-        dyaw = wrap_angle(yaw1[r] - yaw0[r])
-        mid = yaw0[r] + 0.5 * dyaw
+    for r in range(before.shape[0]):
+        dyaw = wrap_angle(after[r, 2] - before[r, 2])
+        mid = before[r, 2] + 0.5 * dyaw
         c, s = math.cos(mid), math.sin(mid)
-        dx, dy = x1[r] - x0[r], y1[r] - y0[r]
+        dx, dy = after[r, 0] - before[r, 0], after[r, 1] - before[r, 1]
         out[r, 0] = (c * dx + s * dy) / dt
         out[r, 1] = (-s * dx + c * dy) / dt
         out[r, 2] = dyaw / dt
 
 
 @njit(cache=True, error_model="numpy")
-def body_to_world(cmd, yaw, dt, out):
-    """World-frame (vx, vy, omega) of body-frame commands, along the chord of the arc the
-    base drives in ``dt`` (heading yaw + omega dt / 2)."""
+def body_to_world(cmd, pose, dt, out):
+    """World-frame (vx, vy, omega) of body-frame commands of robots at ``pose`` (R rows x,
+    y, yaw), along the chord of the arc the base drives in ``dt`` (heading yaw + omega
+    dt / 2)."""
     for r in range(cmd.shape[0]):
-        mid = yaw[r] + 0.5 * cmd[r, 2] * dt
+        mid = pose[r, 2] + 0.5 * cmd[r, 2] * dt
         c, s = math.cos(mid), math.sin(mid)
         out[r, 0] = c * cmd[r, 0] - s * cmd[r, 1]
         out[r, 1] = s * cmd[r, 0] + c * cmd[r, 1]

@@ -37,22 +37,14 @@ class Driver:
 
     def step(self, target, people_velocity=NO_PEOPLE) -> None:
         target = np.asarray(target, dtype=float).reshape(1, 3)
-        limit_commands(target, self.cmd, self.low, self.high, self.acc, self.dt, self.cmd)
+        lateral = self.cfg.kinematics == "holonomic"
+        limit_commands(target, self.cmd, self.low, self.high, self.acc, self.dt, lateral,
+                       self.cmd)  # fmt: skip
         before = self.world.robot_pose.copy()
-        body_to_world(self.cmd, before[:, 2], self.dt, self.world_cmd)
+        body_to_world(self.cmd, before, self.dt, self.world_cmd)
         self.world.collisions[:] = False
         self.world.step(self.world_cmd, people_velocity)
-        after = self.world.robot_pose
-        measure_velocity(
-            before[:, 0],
-            before[:, 1],
-            before[:, 2],
-            after[:, 0],
-            after[:, 1],
-            after[:, 2],
-            self.dt,
-            self.measured,
-        )
+        measure_velocity(before, self.world.robot_pose, self.dt, self.measured)
 
 
 def wall_clearance(world: World, walls=BOX) -> float:
@@ -130,6 +122,7 @@ def test_limit_commands_clip_and_ramp():
         high,
         acc,
         0.1,
+        False,
         out,
     )
     assert out[0] == pytest.approx([0.5, 0.0, -1.05])
@@ -159,7 +152,7 @@ def test_two_robots_collide():
     seen = False
     for _ in range(60):
         pose = world.robot_pose
-        body_to_world(np.array([[0.5, 0, 0], [0.5, 0, 0]]), pose[:, 2], 0.1, cmd)
+        body_to_world(np.array([[0.5, 0, 0], [0.5, 0, 0]]), pose, 0.1, cmd)
         world.collisions[:] = False
         world.step(cmd, NO_PEOPLE)
         seen |= bool(world.collisions[:, 2].all())
