@@ -106,15 +106,10 @@ class World:
         self._robot_rows = np.array([order[b.id] for b in self._robot_bodies], dtype=np.int64)
         self._control_rows = np.array([order[b.id] for b in self._controls], dtype=np.int64)
         self._people_rows = np.array([order[b.id] for b in self._people_bodies], dtype=np.int64)
-        f = pb.BodyFields
-        self._fields_get = f.POSITION | f.ANGLE | f.VELOCITY | f.ANGULAR_VELOCITY
-        self._fields_set = f.VELOCITY | f.ANGULAR_VELOCITY
-        self._state_buf = pb.Buffer()
         # vx, vy, omega of every body, written in one batch call per step (people's omega
-        # stays 0); the batch buffer reads this array itself
+        # stays 0)
         self._velocities = np.zeros((self._n_bodies, 3))
-        self._set_buf = pb.Buffer()
-        self._set_buf.set_float_buf(self._velocities.reshape(-1))
+        self._batch = _BodyBatch(self.space, self._velocities)
         self.state = np.zeros((self._n_bodies, 6))  # x, y, angle, vx, vy, omega of every body
         robots, people = _rows(self._robot_rows), _rows(self._people_rows)
         #: whether the views below are refreshed in place (bodies in runs of the batch order)
@@ -134,8 +129,7 @@ class World:
     def __getstate__(self) -> dict:
         # the batch buffers are C data: rebuilt after unpickling (body ids change too)
         state = self.__dict__.copy()
-        for key in ("_state_buf", "_set_buf", "_fields_get", "_fields_set"):
-            state.pop(key, None)
+        state.pop("_batch", None)
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -162,7 +156,7 @@ class World:
         bodies and ``people_velocity`` (P, 2)."""
         _fill_velocities(self.state, self._robot_rows, self._control_rows, self._people_rows,
                          robot_velocity, people_velocity, self._velocities)  # fmt: skip
-        pb.set_space_bodies(self.space, self._fields_set, self._set_buf)
+        self._batch.write()
         for _ in range(self.substeps if substeps is None else substeps):
             self.space.step(self.physics_dt)
         self.read_state()
@@ -170,11 +164,66 @@ class World:
     def read_state(self) -> None:
         """Refresh :attr:`state` and the views of it (``robot_pose``, ``people_xy``,
         ``people_velocity``, updated in place) from the space (one batch call)."""
-        self._state_buf.clear()
-        pb.get_space_bodies(self.space, self._fields_get, self._state_buf)
-        self.state.reshape(-1)[:] = np.frombuffer(self._state_buf.float_buf(), dtype=np.float64)
+        self._batch.read(self.state)
         if not self._views:
             self._set_views()
+
+
+class _BodyBatch:
+    """The batch read (x, y, angle, vx, vy, omega) and write (vx, vy, omega, from
+    ``velocities``) of every body of ``space`` (:mod:`pymunk.batch`), with the call data
+    built once: the module's functions allocate and look it up on every call. Falls back
+    to them where pymunk lacks the internals used."""
+
+    _GET = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
+    _GET |= pb.BodyFields.ANGULAR_VELOCITY
+    _SET = pb.BodyFields.VELOCITY | pb.BodyFields.ANGULAR_VELOCITY
+
+    def __init__(self, space: pymunk.Space, velocities: NDArray[np.float64]) -> None:
+        self.space = space
+        self.get_buf, self.set_buf = pb.Buffer(), pb.Buffer()
+        self.set_buf.set_float_buf(velocities.reshape(-1))  # the buffer reads the array
+        self.direct = None
+        try:
+            ffi, lib = pb.ffi, pb.lib
+            calls = []
+            for buf, fields, fn in (
+                (self.get_buf, self._GET, "Get"),
+                (self.set_buf, self._SET, "Set"),
+            ):
+                data = ffi.new("pmBatchedData *")
+                data.fields, data.floatArray = fields.value, buf._float_arr
+                data.intArray = buf._int_arr
+                iterator = ffi.addressof(lib, f"pmSpaceBody{fn}IteratorFuncBatched")
+                calls.append((buf._float_arr, iterator, data))
+            self.direct = (ffi, lib.cpSpaceEachBody, space._space, *calls)
+        except AttributeError:  # pragma: no cover - another pymunk layout
+            self.direct = None
+
+    def read(self, into: NDArray[np.float64]) -> None:
+        """Copy the state of every body, in batch order, into ``into`` (B, 6)."""
+        if self.direct is None:
+            self.get_buf.clear()
+            pb.get_space_bodies(self.space, self._GET, self.get_buf)
+            into.reshape(-1)[:] = np.frombuffer(self.get_buf.float_buf(), dtype=np.float64)
+            return
+        ffi, each_body, cp_space, (arr, iterator, data), _ = self.direct
+        arr.num = 0
+        each_body(cp_space, iterator, data)
+        if arr.num != into.size:
+            raise RuntimeError("the space's bodies changed")
+        ffi.memmove(into, arr.arr, into.nbytes)
+
+    def write(self) -> None:
+        """Set the velocity of every body from the ``velocities`` array."""
+        if self.direct is None:
+            pb.set_space_bodies(self.space, self._SET, self.set_buf)
+            return
+        _, each_body, cp_space, _, (arr, iterator, data) = self.direct
+        count = arr.num
+        arr.num = 0  # the set iterator reads from the start
+        each_body(cp_space, iterator, data)
+        arr.num = count
 
 
 def _rows(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
