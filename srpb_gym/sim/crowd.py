@@ -17,19 +17,14 @@ from dataclasses import astuple, dataclass, fields
 from typing import Any
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym import config as _config
-from srpb_gym.angles import wrap_angle
+from srpb_gym.sim import social_force as sf
 from srpb_gym.sim.layout import FormationLayout, PersonLayout
+from srpb_gym.sim.social_force import FORMATION, GROUP, STANDING, STOPPED, WAITING, WALKING
 
-WAITING, WALKING, STOPPED, STANDING = 0, 1, 2, 3  # values of Crowd.state
-CUTOFF = 10.0  # repulsions are dropped beyond this many ranges B (factor exp(-10))
-SLIDE_SPEED = 0.05  # [m/s] a walker slower than this along a wall picks a side afresh
-# Columns of the per-person parameter table (float) and link table (int).
-V0, TAU, REACTION, VMAX, DELAY, JITTER = range(6)
-GROUP, FORMATION, RSTART, RLEN, LOOP = range(5)
+__all__ = ["PRESETS", "STANDING", "STOPPED", "WAITING", "WALKING", "Crowd", "SocialForceConfig"]
 
 
 @dataclass(frozen=True)
@@ -113,321 +108,6 @@ _POSITIVE = frozenset({
 _BOUNDS = (("anisotropy", 0.0, 1.0), ("max_speed_factor", 1.0, math.inf),
            ("group_view_angle", 0.0, math.pi))  # fmt: skip
 PRESETS: dict[str, SocialForceConfig] = {"default": SocialForceConfig()}
-# Indices of the parameters in the vector handed to the kernels (the order of the fields).
-(A_P, B_P, LAM, T_ANT, EVADE, RANGE, A_W, B_W, A_R, B_R, A_O, _VMAX, BETA1, BETA2, BETA3, VIEW,
- MARGIN, TOL, PASS, K_HOLD, C_HOLD, _VSTAND, T_JIT, F_REACT, T_YAW, V_YAW) = range(26)  # fmt: skip
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _wall_offset(px: float, py: float, w: NDArray[np.float64], s: int,
-                 reach: float) -> tuple[float, float, float]:  # fmt: skip
-    """Distance from (px, py) to wall ``s`` of ``w`` and the unit normal pointing to the point;
-    ``inf`` when the point is farther than ``reach`` from the wall's bounding box."""
-    x0, y0, x1, y1 = w[s, 0], w[s, 1], w[s, 2], w[s, 3]
-    if (px < min(x0, x1) - reach or px > max(x0, x1) + reach
-            or py < min(y0, y1) - reach or py > max(y0, y1) + reach):  # fmt: skip
-        return math.inf, 0.0, 0.0
-    sx, sy = x1 - x0, y1 - y0
-    l2 = sx * sx + sy * sy
-    u = 0.0 if l2 == 0.0 else min(max(((px - x0) * sx + (py - y0) * sy) / l2, 0.0), 1.0)
-    dx, dy = px - (x0 + u * sx), py - (y0 + u * sy)
-    d = math.sqrt(dx * dx + dy * dy)
-    if d > 1e-9:
-        return d, dx / d, dy / d
-    if l2 > 0.0:  # on the segment: its left normal
-        s = math.sqrt(l2)
-        return 0.0, -sy / s, sx / s
-    return 0.0, 1.0, 0.0
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _evade(fx: float, fy: float, sx: float, sy: float, ex: float, ey: float,
-           evasion: float) -> tuple[float, float]:  # fmt: skip
-    """Add to a repulsion (fx, fy) that brakes heading e the share ``evasion`` of its braking
-    part along the unit direction (sx, sy)."""
-    brake = -(fx * ex + fy * ey)
-    if brake <= 0.0:
-        return fx, fy
-    return fx + evasion * brake * sx, fy + evasion * brake * sy
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _social(dx: float, dy: float, dvx: float, dvy: float, rsum: float, A: float, B: float,
-            T: float, ex: float, ey: float, lam: float, evasion: float,
-            tie: float) -> tuple[float, float]:  # fmt: skip
-    """Repulsion on a person at offset (dx, dy) and relative velocity (dvx, dvy) from an
-    obstacle of combined radius ``rsum``; e is the person's heading; ``tie`` (+-1) picks the
-    direction when both are at the same point."""
-    px, py = dx, dy
-    dv2 = dvx * dvx + dvy * dvy
-    if T > 0.0 and dv2 > 1e-12:  # closest approach within the horizon
-        tc = min(max(-(dx * dvx + dy * dvy) / dv2, 0.0), T)
-        px, py = dx + dvx * tc, dy + dvy * tc
-    dp = math.sqrt(px * px + py * py)
-    if dp - rsum > CUTOFF * B:
-        return 0.0, 0.0
-    d = math.sqrt(dx * dx + dy * dy)
-    if dp > 1e-9:
-        nx, ny = px / dp, py / dp
-    elif d > 1e-9:
-        nx, ny = dx / d, dy / d
-    else:
-        nx, ny = tie, 0.0
-    cos_phi = -(ex * dx + ey * dy) / d if d > 1e-9 else 1.0
-    mag = A * math.exp((rsum - dp) / B) * (lam + (1.0 - lam) * 0.5 * (1.0 + cos_phi))
-    side = 1.0 if nx * ey - ny * ex >= 0.0 else -1.0  # pass it on the side we are on
-    return _evade(mag * nx, mag * ny, side * ey, -side * ex, ex, ey, evasion)
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _advance_routes(t, pos, vel, props, links, cursor, state, route, anchor, leg_from, prm):
-    """Start delayed walkers, move cursors past reached waypoints, stop finished walkers."""
-    omega = math.sqrt(prm[K_HOLD])
-    for i in range(pos.shape[0]):
-        if state[i] == WAITING and t >= props[i, DELAY]:
-            state[i] = WALKING if links[i, RLEN] > 0 else STOPPED
-        if state[i] != WALKING:
-            continue
-        k = links[i, RSTART] + cursor[i]
-        wx, wy = route[k, 0], route[k, 1]
-        dx, dy = pos[i, 0] - wx, pos[i, 1] - wy
-        d = math.hypot(dx, dy)
-        past = dx * (wx - leg_from[i, 0]) + dy * (wy - leg_from[i, 1]) > 0.0
-        if d >= prm[TOL] and not (past and d < prm[PASS]):
-            continue
-        leg_from[i, 0], leg_from[i, 1] = wx, wy
-        cursor[i] += 1
-        if cursor[i] < links[i, RLEN]:
-            continue
-        if links[i, LOOP]:
-            cursor[i] = 0
-        else:  # stop where a critically damped hold from this velocity comes to rest
-            cursor[i], state[i] = links[i, RLEN] - 1, STOPPED
-            for c in range(2):
-                anchor[i, c] = pos[i, c] + vel[i, c] / omega
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm):
-    """Unscaled repulsion of person i from all robots."""
-    fx = fy = 0.0
-    for r in range(rxy.shape[0]):
-        gx, gy = _social(
-            pos[i, 0] - rxy[r, 0],
-            pos[i, 1] - rxy[r, 1],
-            vel[i, 0] - rvel[r, 0],
-            vel[i, 1] - rvel[r, 1],
-            radius[i] + rrad[r],
-            prm[A_R],
-            prm[B_R],
-            prm[T_ANT],
-            ex,
-            ey,
-            prm[LAM],
-            evasion,
-            1.0,
-        )
-        fx, fy = fx + gx, fy + gy
-    return fx, fy
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _people_force(i, ex, ey, pos, vel, radius, links, state, fcenter, fradius, prm):
-    """Repulsion of walker i from the other people (plus the Moussaid group repulsion) and
-    from the O-spaces of the formations."""
-    fx = fy = 0.0
-    g = links[i, GROUP]
-    r2 = prm[RANGE] * prm[RANGE]
-    for j in range(pos.shape[0]):
-        dx, dy = pos[i, 0] - pos[j, 0], pos[i, 1] - pos[j, 1]
-        if j == i or dx * dx + dy * dy > r2:
-            continue
-        tie = 1.0 if i > j else -1.0
-        rsum = radius[i] + radius[j]
-        gx, gy = _social(
-            dx,
-            dy,
-            vel[i, 0] - vel[j, 0],
-            vel[i, 1] - vel[j, 1],
-            rsum,
-            prm[A_P],
-            prm[B_P],
-            prm[T_ANT],
-            ex,
-            ey,
-            prm[LAM],
-            prm[EVADE],
-            tie,
-        )
-        fx, fy = fx + gx, fy + gy
-        d = math.sqrt(dx * dx + dy * dy)
-        if g >= 0 and links[j, GROUP] == g and state[j] == WALKING and d < rsum + prm[MARGIN]:
-            ux, uy = (dx / d, dy / d) if d > 1e-9 else (tie, 0.0)
-            fx, fy = fx + prm[BETA3] * ux, fy + prm[BETA3] * uy
-    for f in range(fcenter.shape[0]):
-        dx, dy = pos[i, 0] - fcenter[f, 0], pos[i, 1] - fcenter[f, 1]
-        gx, gy = _social(dx, dy, vel[i, 0], vel[i, 1], radius[i] + fradius[f], prm[A_O],
-                         prm[B_P], prm[T_ANT], ex, ey, prm[LAM], prm[EVADE], 1.0)  # fmt: skip
-        fx, fy = fx + gx, fy + gy
-    return fx, fy
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _wall_force(px, py, vx, vy, r, ex, ey, walls, prm):
-    """Repulsion of a walker at (px, py) moving at (vx, vy) from all walls; a braking wall
-    turns it along the wall the way it already slides, else towards its goal, else right."""
-    fx = fy = 0.0
-    reach = r + CUTOFF * prm[B_W]
-    for s in range(walls.shape[0]):
-        d, nx, ny = _wall_offset(px, py, walls, s, reach)
-        if d == math.inf:
-            continue
-        mag = prm[A_W] * math.exp((r - d) / prm[B_W])
-        along = -ny * vx + nx * vy  # tangent (-ny, nx): to the right when facing the wall
-        if abs(along) < SLIDE_SPEED:
-            along = -ny * ex + nx * ey
-        side = 1.0 if along >= 0.0 else -1.0
-        gx, gy = _evade(mag * nx, mag * ny, -side * ny, side * nx, ex, ey, prm[EVADE])
-        fx, fy = fx + gx, fy + gy
-    return fx, fy
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _group_force(i, ex, ey, pos, vel, links, gsum, prm):
-    """Moussaid et al. 2010 gaze and attraction terms of walking-group member i."""
-    g = links[i, GROUP]
-    if g < 0 or gsum[g, 2] < 2.0:
-        return 0.0, 0.0
-    cx, cy = gsum[g, 0] / gsum[g, 2] - pos[i, 0], gsum[g, 1] / gsum[g, 2] - pos[i, 1]
-    dc = math.hypot(cx, cy)
-    if dc < 1e-9:
-        return 0.0, 0.0
-    angle = math.acos(min(max((cx * ex + cy * ey) / dc, -1.0), 1.0))
-    alpha = max(angle - prm[VIEW], 0.0)
-    fx, fy = -prm[BETA1] * alpha * vel[i, 0], -prm[BETA1] * alpha * vel[i, 1]
-    if dc > 0.5 * (gsum[g, 2] - 1.0):
-        fx, fy = fx + prm[BETA2] * cx / dc, fy + prm[BETA2] * cy / dc
-    return fx, fy
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, route, gsum,
-                     fcenter, fradius, walls, rxy, rvel, rrad, prm):  # fmt: skip
-    """Social-force velocity of walker i after dt (exact relaxation, forces held)."""
-    k = links[i, RSTART] + cursor[i]
-    wx, wy = route[k, 0] - pos[i, 0], route[k, 1] - pos[i, 1]
-    dw = math.hypot(wx, wy)
-    ex, ey = (wx / dw, wy / dw) if dw > 1e-9 else (math.cos(yaw[i]), math.sin(yaw[i]))
-    fx, fy = _people_force(i, ex, ey, pos, vel, radius, links, state, fcenter, fradius, prm)
-    gx, gy = _wall_force(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i], ex, ey, walls, prm)
-    fx, fy = fx + gx, fy + gy
-    if props[i, REACTION] > 0.0:
-        gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm)
-        fx, fy = fx + props[i, REACTION] * gx, fy + props[i, REACTION] * gy
-    gx, gy = _group_force(i, ex, ey, pos, vel, links, gsum, prm)
-    tau = props[i, TAU]
-    tx, ty = props[i, V0] * ex + tau * (fx + gx), props[i, V0] * ey + tau * (fy + gy)
-    a = math.exp(-dt / tau)
-    return tx + (vel[i, 0] - tx) * a, ty + (vel[i, 1] - ty) * a
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit, rxy, rvel, rrad,
-                   prm):  # fmt: skip
-    """Velocity of standing person i after dt: implicit spring-damper to its target."""
-    ex, ey = anchor[i, 0] - pos[i, 0], anchor[i, 1] - pos[i, 1]
-    reaction = props[i, REACTION]
-    if state[i] == STANDING:
-        m = i - (pos.shape[0] - jit.shape[0])
-        ex, ey = ex + jit[m, 0], ey + jit[m, 1]
-        reaction = prm[F_REACT]
-    ax = ay = 0.0
-    if reaction > 0.0:
-        ax, ay = _robot_force(i, pos, vel, radius, math.cos(yaw[i]), math.sin(yaw[i]), 0.0,
-                              rxy, rvel, rrad, prm)  # fmt: skip
-    k, c = prm[K_HOLD], prm[C_HOLD]
-    den = 1.0 + dt * c + dt * dt * k
-    return ((vel[i, 0] + dt * (k * ex + reaction * ax)) / den,
-            (vel[i, 1] + dt * (k * ey + reaction * ay)) / den)  # fmt: skip
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _limit(vx, vy, vmax, px, py, r, dt, walls):
-    """Cap the speed, then keep the body from reaching any wall within dt."""
-    s = math.sqrt(vx * vx + vy * vy)
-    if s > vmax:
-        vx, vy, s = vx * vmax / s, vy * vmax / s, vmax
-    for w in range(walls.shape[0]):
-        d, nx, ny = _wall_offset(px, py, walls, w, r + s * dt)
-        approach = -(vx * nx + vy * ny)
-        allowed = max(d - r, 0.0) / dt
-        if approach > allowed:
-            vx, vy = vx + (approach - allowed) * nx, vy + (approach - allowed) * ny
-    return vx, vy
-
-
-@njit(cache=True, error_model="numpy")
-def _step(t, dt, pos, vel, yaw, radius, props, links, cursor, state, route, anchor, leg_from,
-          jit, noise, fcenter, fradius, gsum, walls, rxy, rvel, rrad, prm, out):  # fmt: skip
-    """One update: states, group centres, members' (x, y, yaw) jitter, then all velocities."""
-    _advance_routes(t, pos, vel, props, links, cursor, state, route, anchor, leg_from, prm)
-    gsum[:] = 0.0  # sum of x, y and count of the walking members of each group
-    for i in range(pos.shape[0]):
-        g = links[i, GROUP]
-        if g >= 0 and state[i] == WALKING:
-            gsum[g, 0] += pos[i, 0]
-            gsum[g, 1] += pos[i, 1]
-            gsum[g, 2] += 1.0
-    a = math.exp(-dt / prm[T_JIT])  # exact Ornstein-Uhlenbeck step of the members' jitter
-    for m in range(jit.shape[0]):
-        sigma = props[pos.shape[0] - jit.shape[0] + m, JITTER] * math.sqrt(1.0 - a * a)
-        for c in range(3):
-            jit[m, c] = a * jit[m, c] + sigma * noise[m, c]
-    for i in range(pos.shape[0]):
-        if state[i] == WALKING:
-            vx, vy = _walker_velocity(
-                i,
-                dt,
-                pos,
-                vel,
-                yaw,
-                radius,
-                props,
-                links,
-                cursor,
-                state,
-                route,
-                gsum,
-                fcenter,
-                fradius,
-                walls,
-                rxy,
-                rvel,
-                rrad,
-                prm,
-            )
-        else:
-            vx, vy = _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit,
-                                    rxy, rvel, rrad, prm)  # fmt: skip
-        out[i, 0], out[i, 1] = _limit(vx, vy, props[i, VMAX], pos[i, 0], pos[i, 1], radius[i],
-                                      dt, walls)  # fmt: skip
-
-
-@njit(cache=True, error_model="numpy")
-def _sync(positions, velocities, dt, pos, vel, yaw, state, links, fcenter, jit, prm):
-    """Store the simulated state; turn walkers to their motion, members to their centre."""
-    turn = 1.0 - math.exp(-dt / prm[T_YAW])
-    first = pos.shape[0] - jit.shape[0]
-    for i in range(pos.shape[0]):
-        pos[i, 0], pos[i, 1] = positions[i, 0], positions[i, 1]
-        vel[i, 0], vel[i, 1] = velocities[i, 0], velocities[i, 1]
-        if state[i] == STANDING:
-            f = links[i, FORMATION]
-            heading = math.atan2(fcenter[f, 1] - pos[i, 1], fcenter[f, 0] - pos[i, 0])
-            yaw[i] = wrap_angle(heading + jit[i - first, 2])
-        elif state[i] == WALKING and math.hypot(vel[i, 0], vel[i, 1]) > prm[V_YAW]:
-            heading = math.atan2(vel[i, 1], vel[i, 0])
-            yaw[i] = wrap_angle(yaw[i] + turn * wrap_angle(heading - yaw[i]))
 
 
 def _readonly(a: NDArray[Any]) -> NDArray[Any]:
@@ -468,6 +148,13 @@ class Crowd:
         self._set_walkers(people)
         self._set_formations(formations, len(people))
         self._leg_from = self._pos.copy()
+        # the crowd's arrays as the kernels take them (after the time step, walls and robots)
+        self._step_args = (self._pos, self._vel, self._yaw, self._radius, self._props,
+                           self._links, self._cursor, self._state, self._route, self._anchor,
+                           self._leg_from, self._jit, self._noise, self._fcenter,
+                           self._fradius, self._gsum, self._prm, self._out)  # fmt: skip
+        self._sync_args = (self._pos, self._vel, self._yaw, self._state, self._links,
+                           self._fcenter, self._jit, self._prm)  # fmt: skip
         self.position, self.velocity = _readonly(self._pos), _readonly(self._vel)
         self.yaw, self.radius = _readonly(self._yaw), _readonly(self._radius)
         self.state = _readonly(self._state)
@@ -530,16 +217,12 @@ class Crowd:
             if gen is None:
                 raise ValueError("formation members need an rng (here or in reset)")
             gen.standard_normal(out=self._noise)
-        _step(float(t), float(dt), self._pos, self._vel, self._yaw, self._radius, self._props,
-              self._links, self._cursor, self._state, self._route, self._anchor,
-              self._leg_from, self._jit, self._noise, self._fcenter, self._fradius, self._gsum,
-              self._walls if walls is None else walls, robots_xy, robots_vel, robots_radius,
-              self._prm, self._out)  # fmt: skip
+        sf.step(float(t), float(dt), self._walls if walls is None else walls, robots_xy,
+                robots_vel, robots_radius, *self._step_args)  # fmt: skip
         self._dt = dt
         return self._out
 
     def sync(self, positions: NDArray[np.float64], velocities: NDArray[np.float64]) -> None:
         """Take the people's (P, 2) positions [m] and velocities [m/s] after the physics
         (float64) and turn walkers towards their motion, members towards their centre."""
-        _sync(positions, velocities, float(self._dt), self._pos, self._vel, self._yaw,
-              self._state, self._links, self._fcenter, self._jit, self._prm)  # fmt: skip
+        sf.sync(positions, velocities, float(self._dt), *self._sync_args)

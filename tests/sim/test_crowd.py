@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from srpb_gym.errors import InputError
-from srpb_gym.sim import crowd as crowd_module
+from srpb_gym.sim import social_force as crowd_module
 from srpb_gym.sim.crowd import (
     STANDING,
     STOPPED,
