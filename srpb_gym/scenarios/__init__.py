@@ -9,8 +9,9 @@ Scenarios are checked and sampled for a robot of a given radius (default
 ``DEFAULT_ROBOT_RADIUS``, 0.275 m): ``load_scenario("doorway", robot_radius=0.45)``.
 The file format is documented in ``envs/README.md``.
 
-Modules, each importing only those before it: ``space`` (geometry, free-space grid),
-``schema`` (dataclasses), ``sampler``, ``validate``, ``loader``.
+Modules, each importing only those before it: ``yaml_io`` (safe YAML reading with line
+numbers), ``space`` (geometry, free-space grid), ``schema`` (dataclasses), ``reader``
+(typed values), ``sampler``, ``validate``, ``loader``.
 """
 
 from __future__ import annotations

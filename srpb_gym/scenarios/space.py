@@ -122,6 +122,68 @@ def polygon_area(poly: Sequence[Point]) -> float:
     return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(poly, [*poly[1:], poly[0]]))
 
 
+def repeated_point(points: Sequence[Point], closed: bool) -> str | None:
+    """Why a chain (a ring when ``closed``) has an edge of zero length, or ``None``."""
+    for k in range(1, len(points)):
+        if points[k] == points[k - 1]:
+            return f"points {k - 1} and {k} are the same point"
+    if closed and len(points) > 2 and points[0] == points[-1]:
+        return "the last point repeats the first (the ring closes itself)"
+    return None
+
+
+def polygon_problem(poly: Sequence[Point]) -> str | None:
+    """Why ``poly`` is not a simple polygon with an area, or ``None``: a repeated point,
+    fewer than 3 distinct points, all points on one line, edges that cross or touch
+    (other than neighbours at their shared point), or an area under 1e-9 m^2."""
+    problem = repeated_point(poly, closed=True)
+    if problem is not None:
+        return f"the polygon has an edge of zero length: {problem}"
+    if len(set(poly)) < 3:
+        return "the polygon has fewer than 3 distinct points"
+    p = np.asarray(poly, dtype=np.float64)
+    a, b = p, np.roll(p, -1, axis=0)  # edge i runs from point i to point i + 1
+    rel = p - p[0]
+    far = rel[np.argmax(np.hypot(rel[:, 0], rel[:, 1]))]
+    if not np.any(far[0] * rel[:, 1] - far[1] * rel[:, 0]):
+        return "the polygon has zero area: all its points lie on one line"
+    n = len(p)
+    for i in range(n):
+        j = np.arange(i + 1, n)
+        crossing = _segments_meet(a[i], b[i], a[j], b[j])
+        for k in j[crossing]:
+            if k == i + 1 or (i == 0 and k == n - 1):  # neighbours: only a fold-back counts
+                shared, u, v = (b[i], a[i], b[k]) if k == i + 1 else (a[i], b[i], a[k])
+                du, dv = u - shared, v - shared
+                if du[0] * dv[1] - du[1] * dv[0] != 0 or du @ dv <= 0:
+                    continue
+            return (
+                f"the polygon intersects itself: its edge from point {i} to point "
+                f"{(i + 1) % n} meets its edge from point {k} to point {(k + 1) % n}"
+            )
+    if abs(polygon_area(poly)) < 1e-9:
+        return "the polygon has zero area"
+    return None
+
+
+def _segments_meet(p: NDArray, q: NDArray, r: NDArray, s: NDArray) -> NDArray:
+    """Whether segment p-q meets each segment r-s (rows of r and s), touching included."""
+
+    def orient(u: NDArray, v: NDArray, w: NDArray) -> NDArray:
+        return np.sign((v[..., 0] - u[..., 0]) * (w[..., 1] - u[..., 1])
+                       - (v[..., 1] - u[..., 1]) * (w[..., 0] - u[..., 0]))  # fmt: skip
+
+    def on(u: NDArray, v: NDArray, w: NDArray) -> NDArray:  # w, collinear, within u-v's box
+        lo, hi = np.minimum(u, v), np.maximum(u, v)
+        return np.all((lo <= w) & (w <= hi), axis=-1)
+
+    d1, d2, d3, d4 = orient(r, s, p), orient(r, s, q), orient(p, q, r), orient(p, q, s)
+    proper = (d1 * d2 < 0) & (d3 * d4 < 0)
+    touch = ((d1 == 0) & on(r, s, p)) | ((d2 == 0) & on(r, s, q))
+    touch |= ((d3 == 0) & on(p, q, r)) | ((d4 == 0) & on(p, q, s))
+    return proper | touch
+
+
 def rectangle_corners(center: Point, size: Point, yaw: float) -> tuple[Point, ...]:
     """Corners of a ``size`` = (width, height) rectangle [m] turned by ``yaw`` [rad]."""
     (cx, cy), (w, h), c, s = center, size, math.cos(yaw), math.sin(yaw)

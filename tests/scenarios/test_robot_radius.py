@@ -164,7 +164,7 @@ def test_yaw_ranges_are_wrapped():
 
 # --- the module graph ----------------------------------------------------------------------
 
-MODULES = ("space", "schema", "sampler", "validate", "loader")
+MODULES = ("yaml_io", "space", "schema", "reader", "sampler", "validate", "loader")
 
 
 @pytest.mark.parametrize("module", MODULES)
