@@ -109,7 +109,7 @@ class World:
         # vx, vy, omega of every body, written in one batch call per step (people's omega
         # stays 0)
         self._velocities = np.zeros((self._n_bodies, 3))
-        self._batch = _BodyBatch(self.space, self._velocities)
+        self._calls = _SpaceCalls(self.space, self._velocities)
         self.state = np.zeros((self._n_bodies, 6))  # x, y, angle, vx, vy, omega of every body
         robots, people = _rows(self._robot_rows), _rows(self._people_rows)
         #: whether the views below are refreshed in place (bodies in runs of the batch order)
@@ -129,7 +129,7 @@ class World:
     def __getstate__(self) -> dict:
         # the batch buffers are C data: rebuilt after unpickling (body ids change too)
         state = self.__dict__.copy()
-        state.pop("_batch", None)
+        state.pop("_calls", None)
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -156,24 +156,29 @@ class World:
         bodies and ``people_velocity`` (P, 2)."""
         _fill_velocities(self.state, self._robot_rows, self._control_rows, self._people_rows,
                          robot_velocity, people_velocity, self._velocities)  # fmt: skip
-        self._batch.write()
-        for _ in range(self.substeps if substeps is None else substeps):
-            self.space.step(self.physics_dt)
+        self._calls.write()
+        self._calls.step(self.substeps if substeps is None else substeps, self.physics_dt)
         self.read_state()
 
     def read_state(self) -> None:
         """Refresh :attr:`state` and the views of it (``robot_pose``, ``people_xy``,
         ``people_velocity``, updated in place) from the space (one batch call)."""
-        self._batch.read(self.state)
+        self._calls.read(self.state)
         if not self._views:
             self._set_views()
 
 
-class _BodyBatch:
-    """The batch read (x, y, angle, vx, vy, omega) and write (vx, vy, omega, from
-    ``velocities``) of every body of ``space`` (:mod:`pymunk.batch`), with the call data
-    built once: the module's functions allocate and look it up on every call. Falls back
-    to them where pymunk lacks the internals used."""
+class _SpaceCalls:
+    """The pymunk calls of every control step with their setup done once.
+
+    The batch read (x, y, angle, vx, vy, omega) and write (vx, vy, omega, from
+    ``velocities``) of every body of ``space``: :mod:`pymunk.batch`'s functions allocate
+    and look up their call data on every call. The physics steps: ``Space.step`` also
+    runs the bookkeeping of bodies added or removed during a step, which a world never
+    has; it is called only while some is pending (the checks of newly added bodies before
+    the first step). ``direct`` False (pymunk without the internals used) calls pymunk's
+    own functions.
+    """
 
     _GET = pb.BodyFields.POSITION | pb.BodyFields.ANGLE | pb.BodyFields.VELOCITY
     _GET |= pb.BodyFields.ANGULAR_VELOCITY
@@ -183,46 +188,62 @@ class _BodyBatch:
         self.space = space
         self.get_buf, self.set_buf = pb.Buffer(), pb.Buffer()
         self.set_buf.set_float_buf(velocities.reshape(-1))  # the buffer reads the array
-        self.direct = None
         try:
-            ffi, lib = pb.ffi, pb.lib
-            calls = []
-            for buf, fields, fn in (
-                (self.get_buf, self._GET, "Get"),
-                (self.set_buf, self._SET, "Set"),
-            ):
-                data = ffi.new("pmBatchedData *")
-                data.fields, data.floatArray = fields.value, buf._float_arr
-                data.intArray = buf._int_arr
-                iterator = ffi.addressof(lib, f"pmSpaceBody{fn}IteratorFuncBatched")
-                calls.append((buf._float_arr, iterator, data))
-            self.direct = (ffi, lib.cpSpaceEachBody, space._space, *calls)
+            self.ffi, lib = pb.ffi, pb.lib
+            self.each_body, self.cp_space = lib.cpSpaceEachBody, space._space
+            self.get_call = self._batch_call(self.get_buf, self._GET, "Get")
+            self.set_call = self._batch_call(self.set_buf, self._SET, "Set")
+            self._pending()
+            self.cp_step = lib.cpSpaceStep
+            self.direct = not space.threaded
         except AttributeError:  # pragma: no cover - another pymunk layout
-            self.direct = None
+            self.direct = False
+
+    def _batch_call(self, buf: pb.Buffer, fields: pb.BodyFields, kind: str) -> tuple:
+        data = self.ffi.new("pmBatchedData *")
+        data.fields, data.floatArray, data.intArray = fields.value, buf._float_arr, buf._int_arr
+        iterator = self.ffi.addressof(pb.lib, f"pmSpaceBody{kind}IteratorFuncBatched")
+        return buf._float_arr, iterator, data
+
+    def _pending(self) -> bool:
+        """Whether ``Space.step`` has bookkeeping to do."""
+        s = self.space
+        return bool(s._bodies_to_check or s._add_later or s._remove_later
+                    or s._post_step_callbacks)  # fmt: skip
+
+    def step(self, substeps: int, dt: float) -> None:
+        """``substeps`` physics steps of ``dt`` [s]."""
+        if not self.direct or self._pending():
+            for _ in range(substeps):
+                self.space.step(dt)
+            return
+        step, cp_space = self.cp_step, self.cp_space
+        for _ in range(substeps):
+            step(cp_space, dt)
 
     def read(self, into: NDArray[np.float64]) -> None:
         """Copy the state of every body, in batch order, into ``into`` (B, 6)."""
-        if self.direct is None:
+        if not self.direct:
             self.get_buf.clear()
             pb.get_space_bodies(self.space, self._GET, self.get_buf)
             into.reshape(-1)[:] = np.frombuffer(self.get_buf.float_buf(), dtype=np.float64)
             return
-        ffi, each_body, cp_space, (arr, iterator, data), _ = self.direct
+        arr, iterator, data = self.get_call
         arr.num = 0
-        each_body(cp_space, iterator, data)
+        self.each_body(self.cp_space, iterator, data)
         if arr.num != into.size:
             raise RuntimeError("the space's bodies changed")
-        ffi.memmove(into, arr.arr, into.nbytes)
+        self.ffi.memmove(into, arr.arr, into.nbytes)
 
     def write(self) -> None:
         """Set the velocity of every body from the ``velocities`` array."""
-        if self.direct is None:
+        if not self.direct:
             pb.set_space_bodies(self.space, self._SET, self.set_buf)
             return
-        _, each_body, cp_space, _, (arr, iterator, data) = self.direct
+        arr, iterator, data = self.set_call
         count = arr.num
         arr.num = 0  # the set iterator reads from the start
-        each_body(cp_space, iterator, data)
+        self.each_body(self.cp_space, iterator, data)
         arr.num = count
 
 

@@ -176,10 +176,10 @@ def test_robot_config_validation():
     assert RobotConfig(kinematics="holonomic").action_dims == 3
 
 
-def test_batch_calls_match_the_public_pymunk_batch_functions():
+def test_direct_calls_match_the_public_pymunk_functions():
     people = np.array([[1.0, 0.5], [-1.0, -0.5]])
     fast, public = (box_world((0.0, 0.0, 0.3), people) for _ in range(2))
-    public._batch.direct = None  # pymunk.batch's own get/set functions
+    public._calls.direct = False  # pymunk.batch's get/set functions and Space.step
     cmd, walk = np.array([[0.4, 0.0, 0.5]]), np.array([[0.3, -0.2], [-0.5, 0.1]])
     for _ in range(20):
         fast.step(cmd, walk)
