@@ -26,12 +26,12 @@ packaged as ``srpb_gym.reward_presets``) overridden by name.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping
 from importlib.resources import files
 from typing import Any
 
 import numpy as np
-import yaml
 from numba import njit
 from numpy.typing import NDArray
 
@@ -41,6 +41,7 @@ from srpb_gym.metrics import kernels
 from srpb_gym.metrics.episode import TAUBIN_MIN_MEMBERS, group_values
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.metrics.record import EpisodeRecord
+from srpb_gym.scenarios.yaml_io import load_file
 
 TASK_TERMS: tuple[str, ...] = ("progress", "success", "collision", "time")
 SRPB_TERMS: tuple[str, ...] = (
@@ -58,27 +59,37 @@ def preset_names() -> list[str]:
 
 def load_preset(name: str) -> dict[str, float]:
     """The weights of a packaged preset (``task`` or ``srpb``)."""
-    if name not in preset_names():
+    if not isinstance(name, str) or name not in preset_names():
         raise InputError(f"unknown reward preset {name!r}; choose one of {preset_names()}",
                          key="reward")  # fmt: skip
     path = files("srpb_gym.reward_presets") / f"{name}.yaml"
-    return check_weights(yaml.safe_load(path.read_text()) or {}, str(path))
+    return check_weights(load_file(path, str(path)), file=str(path))
 
 
-def check_weights(weights: Mapping[str, Any], where: str = "reward_weights") -> dict[str, float]:
-    """Weights by term name, each a finite number; unknown names are errors."""
+def check_weights(
+    weights: Mapping[str, Any], where: str = "reward_weights", file: str | None = None
+) -> dict[str, float]:
+    """Weights by term name, each a finite number; unknown names are errors. ``where``
+    names the mapping in errors (``file``: the file it was read from, if any)."""
+    prefix = "" if file is not None else f"{where}."
+    if not isinstance(weights, Mapping):
+        raise InputError(f"expected a mapping of term names to weights, got {weights!r}",
+                         file, key=None if file is not None else where)  # fmt: skip
     out = {}
     for name, value in weights.items():
         if name not in _T:
             raise InputError(f"unknown reward term; valid terms: {', '.join(TERMS)}",
-                             key=f"{where}.{name}")  # fmt: skip
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, (int, float))
-            or not math.isfinite(value)
-        ):
-            raise InputError(f"expected a finite number, got {value!r}", key=f"{where}.{name}")
-        out[name] = float(value)
+                             file, key=f"{prefix}{name}")  # fmt: skip
+        number = math.nan
+        if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
+            try:
+                number = float(value)
+            except OverflowError:  # an int too large for a float
+                number = math.inf
+        if not math.isfinite(number):
+            raise InputError(f"expected a finite number, got {value!r}", file,
+                             key=f"{prefix}{name}")  # fmt: skip
+        out[name] = number
     return out
 
 
