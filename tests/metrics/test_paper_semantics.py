@@ -342,7 +342,7 @@ def test_unknown_names_are_errors():
         evaluate(rec, preset="nope")
     with pytest.raises(ValueError, match="unknown semantics"):
         evaluate(rec, semantics="nope")
-    with pytest.raises(ValueError, match="must be finite"):
+    with pytest.raises(ValueError, match="expected a finite number"):
         evaluate(rec, safety_distance=float("nan"))
 
 
