@@ -1,7 +1,7 @@
 """srpb-gym's own episode format: one ``.npz`` file holding an :class:`EpisodeRecord` exactly.
 
-Unlike the SRPB native text logs (4 decimals), this format keeps every number at full
-precision, so a record read back evaluates to bit-identical metrics. The file is a plain
+The record is stored bit for bit (as are native logs written at full precision), so a
+record read back evaluates to bit-identical metrics. The file is a plain
 (uncompressed) numpy ``.npz`` archive, readable with ``numpy.load(path, allow_pickle=False)``.
 
 Layout (N robot samples, P people rows, G group rows, M group memberships; units are SI:
@@ -31,18 +31,28 @@ key                     dtype    shape       content
 ======================  =======  ==========  ================================================
 
 ``group_start`` (where each group's members begin in ``group_members``) is not stored: it is
-the exclusive cumulative sum of ``group_size``.
+the exclusive cumulative sum of ``group_size``. ``planning_time`` is NaN at a sample where
+no decision was timed (the final sample of a simulated run); every other value is finite,
+and :func:`load_record` refuses a file with a value that cannot be right.
 """
 
 from __future__ import annotations
 
 import os
+import struct
 import zipfile
+import zlib
 
 import numpy as np
 
 from srpb_gym.errors import InputError
-from srpb_gym.metrics.record import PERSON_FIELDS, ROBOT_FIELDS, EpisodeRecord
+from srpb_gym.metrics.record import (
+    PERSON_FIELDS,
+    ROBOT_FIELDS,
+    EpisodeRecord,
+    invalid_person_row,
+    invalid_robot_row,
+)
 
 FORMAT = "srpb-gym-record"
 FORMAT_VERSION = 1
@@ -76,25 +86,17 @@ def load_record(path: str | os.PathLike) -> EpisodeRecord:
     """Read a record written by :func:`save_record`.
 
     Raises :class:`InputError` naming the file (and the key) when the file is missing, is
-    not an srpb-gym record, has a newer format version, lacks a key or holds inconsistent
-    tables.
+    not an srpb-gym record (not an ``.npz`` archive, damaged, holding pickled objects or
+    foreign arrays), has a newer format version, lacks a key, holds inconsistent tables or
+    a value that cannot be right: the rules of the native logs
+    (:func:`~srpb_gym.metrics.record.invalid_robot_row`,
+    :func:`~srpb_gym.metrics.record.invalid_person_row`): finite values, times that do not
+    decrease, valid covariances; ``planning_time`` may be NaN (no decision timed at that
+    sample, as in the final sample of a simulated run).
     """
-    try:
-        data = np.load(path, allow_pickle=False)
-        if not isinstance(data, np.lib.npyio.NpzFile):
-            raise InputError(f"not an {FORMAT} file (a single array, not an .npz)", path)
-        with data:
-            arrays = {key: data[key] for key in data.files}
-    except InputError:
-        raise
-    except FileNotFoundError:
-        raise InputError("no such file", path) from None
-    except IsADirectoryError:
-        raise InputError("is a directory, not an .npz file", path) from None
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
-        raise InputError(f"not a readable .npz file ({exc})", path) from None
+    arrays = _read_arrays(path)
     if "format" not in arrays:
-        raise InputError(f"not an {FORMAT} file (no 'format' key)", path, key="format")
+        raise InputError(f"{_NOT_OURS} (no 'format' key)", path, key="format")
     _check_header(arrays, path)
     tables = {key: _get(arrays, key, path, np.float64, 2) for key in ("robot", "people")}
     tables.update({key: _get(arrays, key, path, np.int64, 1) for key in _INT_KEYS})
@@ -103,15 +105,65 @@ def load_record(path: str | os.PathLike) -> EpisodeRecord:
         tables.update(dict.fromkeys(group_keys))  # no groups: keep the record's tables empty
     labels = {key: _labels(arrays, key, path) for key in _LABEL_KEYS}
     try:
-        return EpisodeRecord.from_arrays(**tables, **labels)
+        record = EpisodeRecord.from_arrays(**tables, **labels)
     except ValueError as exc:
         raise InputError(f"inconsistent tables: {exc}", path) from None
+    problem = invalid_robot_row(record.robot)
+    if problem is not None:
+        raise InputError(f"sample {problem[0]}: {problem[1]}", path, key="robot")
+    problem = invalid_person_row(record.people)
+    if problem is not None:
+        row, why = problem
+        msg = f"row {row} (sample {int(record.people_sample[row])}): {why}"
+        raise InputError(msg, path, key="people")
+    return record
+
+
+_NOT_OURS = f"not an {FORMAT.replace('-record', ' record')}"  # "not an srpb-gym record"
+_DAMAGED = (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error, KeyError,
+            UnicodeDecodeError, SyntaxError, struct.error, NotImplementedError)  # fmt: skip
+
+
+def _read_arrays(path) -> dict[str, np.ndarray]:
+    """Every array of the ``.npz`` file ``path``; :class:`InputError` for anything else."""
+    try:
+        data = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise InputError("no such file", path) from None
+    except IsADirectoryError:
+        raise InputError("is a directory, not an .npz file", path) from None
+    except PermissionError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
+    except _DAMAGED:
+        raise InputError(f"{_NOT_OURS} (not a numpy .npz archive)", path) from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise InputError(f"{_NOT_OURS} (a single .npy array, not an .npz archive)", path)
+    arrays: dict[str, np.ndarray] = {}
+    with data:
+        try:
+            names = list(data.files)
+        except _DAMAGED:
+            raise InputError(f"{_NOT_OURS} (a damaged .npz archive)", path) from None
+        for key in names:
+            try:
+                value = data[key]
+            except ValueError as exc:
+                why = "pickled objects" if "pickle" in str(exc) else "no readable array"
+                raise InputError(f"{_NOT_OURS} (the entry holds {why})", path, key=key) from None
+            except _DAMAGED:
+                msg = f"{_NOT_OURS} (a damaged .npz archive)"
+                raise InputError(msg, path, key=key) from None
+            if not isinstance(value, np.ndarray):
+                msg = f"{_NOT_OURS} (the entry is not a numpy array)"
+                raise InputError(msg, path, key=key)
+            arrays[key] = value
+    return arrays
 
 
 def _check_header(arrays: dict[str, np.ndarray], path) -> None:
     fmt = arrays["format"]
     if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != FORMAT:
-        raise InputError(f"not an {FORMAT} file", path, key="format")
+        raise InputError(f"{_NOT_OURS} (format is not {FORMAT!r})", path, key="format")
     version = _get(arrays, "format_version", path, np.int64, 0)
     if int(version) > FORMAT_VERSION:
         msg = f"format version {int(version)} is newer than this reader's {FORMAT_VERSION}"

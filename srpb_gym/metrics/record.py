@@ -27,6 +27,7 @@ Ids are integers. Logs with textual ids keep them in ``person_labels``/``group_l
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -215,7 +216,9 @@ class EpisodeRecord:
         return rec
 
     def validate(self) -> None:
-        """Check the tables' internal consistency; raises ``ValueError``."""
+        """Check the tables' internal consistency (indices, sizes, labels); raises
+        ``ValueError``. Values are checked by :func:`invalid_robot_row` and
+        :func:`invalid_person_row` (the log readers refuse what they report)."""
         n, p = self.n_samples, self.people.shape[0]
         ps = self.people_sample
         if ps.shape[0] != p or self.people_id.shape[0] != p:
@@ -235,6 +238,10 @@ class EpisodeRecord:
             raise ValueError("group_members must index people rows")
         if m.size and np.any(ps[m] != np.repeat(gs, self.group_size)):
             raise ValueError("a group member must be a person of the group's own sample")
+        for name, ids, labels in (("people_id", self.people_id, self.person_labels),
+                                  ("group_id", self.group_id, self.group_labels)):  # fmt: skip
+            if labels is not None and ids.size and (ids.min() < 0 or ids.max() >= len(labels)):
+                raise ValueError(f"{name} must index its {len(labels)} labels")
 
     def latest(self) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
         """The last sample as small tables: robot (1, 12), people (k, 9), people ids (k,),
@@ -315,3 +322,88 @@ class EpisodeRecord:
             f"EpisodeRecord(samples={self.n_samples}, person_rows={self.people.shape[0]}, "
             f"group_rows={self.group_sample.shape[0]})"
         )
+
+
+# ---------------------------------------------------------------------------- value checks
+COVARIANCE_TOLERANCE = 5e-7
+"""Slack [m^2] of the covariance checks: half the last digit of the native logs' 6-decimal
+covariances, so that rounding a valid covariance never makes it look invalid."""
+
+_ROBOT_UNITS = ("s", "m", "m", "rad", "m/s", "m/s", "rad/s", "m", "m", "rad", "m", "s")
+_PERSON_UNITS = ("m", "m", "rad", "m^2", "m^2", "m^2", "m^2", "m/s", "m/s")
+
+
+def _first(mask: NDArray[np.bool_]) -> int:
+    """Index of the first true entry of a 1-D mask, or its length when there is none."""
+    hits = np.flatnonzero(mask)
+    return int(hits[0]) if hits.size else mask.shape[0]
+
+
+def invalid_robot_row(robot: ArrayLike) -> tuple[int, str] | None:
+    """The first row of a robot table (N, 12; :data:`ROBOT_FIELDS`) holding a value that
+    cannot be right, with a one-line reason; ``None`` when every row is valid.
+
+    Rules: every value is finite, except ``planning_time``, which is a time >= 0 [s] or NaN
+    (no decision timed at that sample: the final sample of a simulated run, or a run
+    without timing; the metrics skip it); ``t`` [s] does not decrease from row to row.
+    """
+    table = np.asarray(robot, dtype=np.float64).reshape(-1, len(ROBOT_FIELDS))
+    if table.shape[0] == 0:
+        return None
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(table)
+        pt = table[:, R["planning_time"]]
+        bad[:, R["planning_time"]] = ~(np.isnan(pt) | (np.isfinite(pt) & (pt >= 0.0)))
+        t = table[:, R["t"]]
+        back = np.zeros(t.shape[0], dtype=np.bool_)
+        back[1:] = t[1:] < t[:-1]
+    rows = bad.any(axis=1) | back
+    row = _first(rows)
+    if row == rows.shape[0]:
+        return None
+    if bad[row].any():
+        col = int(np.flatnonzero(bad[row])[0])
+        name, value = ROBOT_FIELDS[col], float(table[row, col])
+        if name == "planning_time":
+            return row, (f"planning_time is {value!r}, expected a time >= 0 s (or nan: no "
+                         f"decision at this sample)")  # fmt: skip
+        return row, f"{name} is {value!r}, expected a finite number ({_ROBOT_UNITS[col]})"
+    return row, (f"t = {float(t[row])!r} is earlier than the previous sample's t = "
+                 f"{float(t[row - 1])!r}: robot times must not decrease")  # fmt: skip
+
+
+def invalid_person_row(people: ArrayLike) -> tuple[int, str] | None:
+    """The first row of a people table (P, 9; :data:`PERSON_FIELDS`) holding a value that
+    cannot be right, with a one-line reason; ``None`` when every row is valid.
+
+    Rules: every value is finite; the position covariance is a covariance: variances
+    ``cov_xx``, ``cov_yy`` >= 0 and ``|cov_xy|``, ``|cov_yx|`` <= sqrt(cov_xx * cov_yy)
+    (positive semi-definite), both up to :data:`COVARIANCE_TOLERANCE`.
+    """
+    table = np.asarray(people, dtype=np.float64).reshape(-1, len(PERSON_FIELDS))
+    if table.shape[0] == 0:
+        return None
+    tol = COVARIANCE_TOLERANCE
+    with np.errstate(invalid="ignore"):
+        bad = ~np.isfinite(table)
+        cxx, cxy, cyx, cyy = (table[:, P[f]] for f in ("cov_xx", "cov_xy", "cov_yx", "cov_yy"))
+        negative = (cxx < -tol) | (cyy < -tol)
+        bound = np.sqrt((np.maximum(cxx, 0.0) + tol) * (np.maximum(cyy, 0.0) + tol)) + tol
+        not_psd = (np.abs(cxy) > bound) | (np.abs(cyx) > bound)
+    rows = bad.any(axis=1) | negative | not_psd
+    row = _first(rows)
+    if row == rows.shape[0]:
+        return None
+    if bad[row].any():
+        col = int(np.flatnonzero(bad[row])[0])
+        value = float(table[row, col])
+        return row, (f"{PERSON_FIELDS[col]} is {value!r}, expected a finite number "
+                     f"({_PERSON_UNITS[col]})")  # fmt: skip
+    xx, xy, yx, yy = (float(v[row]) for v in (cxx, cxy, cyx, cyy))
+    if negative[row]:
+        name, value = ("cov_xx", xx) if xx < -tol else ("cov_yy", yy)
+        return row, f"{name} is {value!r}: a variance cannot be negative (m^2)"
+    name, value = ("cov_xy", xy) if abs(xy) > bound[row] else ("cov_yx", yx)
+    return row, (f"{name} is {value!r}, larger in magnitude than sqrt(cov_xx * cov_yy) = "
+                 f"{math.sqrt(max(xx, 0.0) * max(yy, 0.0))!r}: not a valid covariance (not "
+                 f"positive semi-definite)")  # fmt: skip

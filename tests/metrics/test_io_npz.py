@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -28,15 +29,19 @@ def _assert_bit_exact(a: EpisodeRecord, b: EpisodeRecord) -> None:
 
 
 def _awkward_record() -> EpisodeRecord:
-    """Values that text formats lose: full precision, -0.0, NaN, infinities, tiny numbers."""
+    """Values that fixed-point text loses: full precision, -0.0, subnormal and huge numbers,
+    NaN planning times (no decision timed)."""
     rng = np.random.default_rng(11)
     rec = EpisodeRecord(person_labels=["anna", "bo", "ünïcode"], group_labels=[""])
     for k in range(25):
         robot = rng.normal(size=12) * 10.0 ** rng.integers(-12, 12, size=12)
         robot[0] = k / 3.0
+        robot[11] = abs(robot[11]) if k % 5 else np.nan
         if k == 3:
-            robot[1:5] = [np.nan, np.inf, -np.inf, -0.0]
+            robot[1:5] = [5e-324, 1e300, -1e-300, -0.0]
         people = rng.normal(size=(3, 9)) / 7.0
+        a = rng.normal(size=(3, 2, 2))
+        people[:, 3:7] = (a @ a.transpose(0, 2, 1)).reshape(3, 4)  # covariances
         groups = {"group_ids": [0], "group_sizes": [2], "group_members": [2, 0]} if k % 4 else {}
         rec.append(robot, [2, 0, 1], people, **groups)
     return rec
@@ -153,15 +158,83 @@ def test_inconsistent_tables(tmp_path):
 
 def test_not_one_of_ours(tmp_path):
     path = _episode(tmp_path / "other.npz", a=np.zeros(3))
-    with pytest.raises(InputError, match="not an srpb-gym-record file") as info:
+    with pytest.raises(InputError) as info:
         load_record(path)
-    assert info.value.key == "format"
+    assert str(info.value) == f"{path}: format: not an srpb-gym record (no 'format' key)"
     np.save(tmp_path / "single.npy", np.zeros(3))
-    with pytest.raises(InputError, match="not an srpb-gym-record"):
+    with pytest.raises(InputError) as info:
         load_record(tmp_path / "single.npy")
-    (tmp_path / "text.npz").write_text("hello")
-    with pytest.raises(InputError, match="not a readable"):
-        load_record(tmp_path / "text.npz")
+    assert str(info.value) == (f"{tmp_path}/single.npy: not an srpb-gym record (a single .npy "
+                               "array, not an .npz archive)")  # fmt: skip
+
+
+@pytest.mark.parametrize("data", [b"hello", b"", b"PK\x03\x04garbage", b"\x93NUMPY\x01\x00{",
+                                  bytes(range(256)) * 4])  # fmt: skip
+def test_garbage_is_not_an_srpb_gym_record(tmp_path, data):
+    """Never numpy's message (which suggests allow_pickle), never a traceback."""
+    path = tmp_path / "garbage.npz"
+    path.write_bytes(data)
+    with pytest.raises(InputError) as info:
+        load_record(path)
+    assert str(info.value) == f"{path}: not an srpb-gym record (not a numpy .npz archive)"
+
+
+def test_entries_that_are_not_arrays(tmp_path):
+    path = tmp_path / "zip.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("format", "srpb-gym-record")
+    with pytest.raises(InputError) as info:
+        load_record(path)
+    assert (
+        str(info.value) == f"{path}: format: not an srpb-gym record (the entry is not a "
+        "numpy array)"
+    )
+
+
+def test_damaged_archives_give_one_located_line(tmp_path):
+    save_record(_awkward_record(), tmp_path / "good.npz")
+    good = (tmp_path / "good.npz").read_bytes()
+    rng = np.random.default_rng(2)
+    path = tmp_path / "bad.npz"
+    for trial in range(200):
+        data = bytearray(good)
+        if trial % 2:
+            data = data[: int(rng.integers(0, len(data)))]
+        for _ in range(int(rng.integers(1, 6))):
+            if data:
+                data[int(rng.integers(0, len(data)))] = int(rng.integers(0, 256))
+        path.write_bytes(bytes(data))
+        try:
+            load_record(path)
+        except InputError as exc:
+            assert exc.path == str(path) and "\n" not in str(exc)
+            assert "allow_pickle" not in str(exc)
+
+
+@pytest.mark.parametrize(("table", "row", "col", "value", "message"), [
+    ("robot", 4, 1, np.nan, "sample 4: x is nan, expected a finite number (m)"),
+    ("robot", 2, 0, np.nan, "sample 2: t is nan, expected a finite number (s)"),
+    ("robot", 7, 10, -np.inf, "sample 7: obstacle_dist is -inf, expected a finite number (m)"),
+    ("robot", 1, 11, np.inf,
+     "sample 1: planning_time is inf, expected a time >= 0 s (or nan: no decision at this "
+     "sample)"),
+    ("robot", 3, 0, -5.0,
+     "sample 3: t = -5.0 is earlier than the previous sample's t = 0.6666666666666666: robot "
+     "times must not decrease"),
+    ("people", 5, 8, np.nan, "row 5 (sample 1): vy is nan, expected a finite number (m/s)"),
+    ("people", 6, 3, -1.0, "row 6 (sample 2): cov_xx is -1.0: a variance cannot be negative (m^2)"),
+    ("people", 0, 5, 100.0,
+     "row 0 (sample 0): cov_yx is 100.0, larger in magnitude than sqrt(cov_xx * cov_yy) = "),
+])  # fmt: skip
+def test_values_that_cannot_be_right_are_refused(tmp_path, table, row, col, value, message):
+    arrays = _saved(tmp_path)
+    arrays[table] = arrays[table].copy()
+    arrays[table][row, col] = value
+    path = _episode(tmp_path / "bad.npz", **arrays)
+    with pytest.raises(InputError) as info:
+        load_record(path)
+    assert info.value.path == str(path) and info.value.key == table
+    assert info.value.message.startswith(message)
 
 
 def test_missing_file(tmp_path):
