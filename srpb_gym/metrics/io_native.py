@@ -7,16 +7,30 @@ An SRPB run is logged as three whitespace-separated text files (see ``METRICS.md
 SI (m, s, rad, m/s, rad/s, m^2); velocities of the robot are body-frame, those of people
 global-frame.
 
-Reading rules:
+Reading rules ("no silent wrong numbers": what cannot be right is refused):
 
 - Blank lines are skipped; line numbers in errors are 1-based and count every line.
 - Robot lines hold t + 23 values, or t + 26 values (a newer logger inserts ``cmd_vx cmd_vy
   cmd_omega`` before ``obstacle_dist``); both may appear in one file.
-- Numbers are read as Python's ``float()`` reads them, so ``nan``, ``inf`` and ``-inf``
-  are accepted.
+- Numbers have the standard decimal syntax (``1.5``, ``-2e-3``, ``nan``, ``inf``; no
+  underscores, no non-ASCII digits), as the reference reader's ``std::stod`` reads them.
+- Values the metrics use must be right (see :func:`~srpb_gym.metrics.record.
+  invalid_robot_row` and :func:`~srpb_gym.metrics.record.invalid_person_row`): every
+  timestamp, robot pose, velocity, goal and obstacle distance and every person's pose,
+  velocity and position covariance is finite; robot times do not decrease; a covariance
+  is a covariance (no negative variance, positive semi-definite up to 5e-7 m^2, the
+  rounding of the logs' 6 decimals). The one legitimately missing value is a robot
+  ``planning_time`` of ``nan``: no decision was timed at that sample (srpb-gym writes it
+  for the final sample of a run); the metrics skip it. Columns the metrics do not use
+  (z, the robot's pose and velocity covariances, vz, ``cmd_*``, a person's reliability,
+  z, ``cov_yawyaw``, vz, omega and velocity covariances, group cog, age and relation
+  strengths) need only be numbers.
 - People and groups are matched to robot samples by equal timestamps (float equality of the
   parsed numbers). When the robot log repeats a timestamp, people and groups at that time
-  are attached to the first robot sample carrying it.
+  are attached to the first robot sample carrying it. Every line of the people and groups
+  logs (bare lines included) must match a robot sample, and every robot sample must have
+  at least one line in each (a person or group line, or a bare timestamp line): a log that
+  misses samples (a truncated one, typically) is refused, naming that log.
 - Person and group ids are text; each distinct text gets an integer code in order of first
   appearance in its file, and the texts become the record's ``person_labels`` /
   ``group_labels`` (``None`` when the file holds no id).
@@ -31,17 +45,28 @@ from __future__ import annotations
 
 import gc
 import os
+import re
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
-from srpb_gym.metrics.record import PERSON_FIELDS, ROBOT_FIELDS, EpisodeRecord
+from srpb_gym.metrics.record import (
+    PERSON_FIELDS,
+    ROBOT_FIELDS,
+    EpisodeRecord,
+    invalid_person_row,
+    invalid_robot_row,
+)
 
 PathLike = str | os.PathLike
+LogPath = PathLike | Literal[False] | None
+"""A people or groups log argument: a path, ``False`` (the run has no such log) or ``None``
+(not given: refused)."""
 
 _POSE_COV = ("cov_xx", "cov_xy", "cov_yx", "cov_yy", "cov_yawyaw")
 _VEL_COV = tuple("v" + name for name in _POSE_COV)
@@ -64,6 +89,11 @@ GROUP_HEAD: tuple[str, ...] = ("t", "id", "cog_x", "cog_y", "cog_z", "age")
 
 _PERSON_NUMERIC = (0, *range(2, 25))
 _PERSON_TAKE = [_PERSON_NUMERIC.index(PERSON_COLUMNS.index(f)) for f in PERSON_FIELDS]
+_NUMBER = re.compile(
+    r"[+-]?(?:[0-9]+\.?[0-9]*(?:[eE][+-]?[0-9]+)?|\.[0-9]+(?:[eE][+-]?[0-9]+)?|inf(?:inity)?"
+    r"|nan)",
+    re.IGNORECASE,
+)
 
 
 # ---------------------------------------------------------------------------- reading
@@ -82,21 +112,37 @@ def sibling_logs(robot_path: PathLike) -> tuple[Path | None, Path | None]:
     return people, groups
 
 
-def read_native(
-    robot_path: PathLike, people_path: PathLike | None = None, groups_path: PathLike | None = None
-) -> EpisodeRecord:
-    """Read an episode from SRPB native logs; people and groups logs are optional.
+def read_native(robot_path: PathLike, people_path: LogPath, groups_path: LogPath) -> EpisodeRecord:
+    """Read an episode from SRPB native logs (see the module docstring for the rules).
+
+    ``people_path`` / ``groups_path``: the run's people and groups logs. ``False`` says the
+    run has no such log: the record then holds no people (no groups), and the social
+    metrics evaluate as for a run in which nobody was tracked (0); a caller that only lost
+    the log should report them as not computed instead. ``None`` (not given) is refused,
+    so that a missing log never passes for an empty scene.
 
     Raises :class:`InputError` (file and 1-based line) for any malformed input.
     """
-    robot = _read_robot(robot_path)
-    t_robot = robot[:, 0]
-    people = _People.empty() if people_path is None else _read_people(people_path, t_robot)
-    groups, g_labels = _read_groups(groups_path, t_robot, people)
+    robot = _Robot(robot_path)
+    _check_given(people_path, "people", robot_path)
+    people = _People.empty() if people_path is False else _read_people(people_path, robot)
+    _check_given(groups_path, "groups", robot_path)
+    groups, g_labels = (None,) * 4, None
+    if groups_path is not False:
+        groups, g_labels = _read_groups(groups_path, robot, people)
     return EpisodeRecord.from_arrays(
-        robot, people.table, people.sample, people.code, *groups,
+        robot.table, people.table, people.sample, people.code, *groups,
         person_labels=people.labels, group_labels=g_labels,
     )  # fmt: skip
+
+
+def _check_given(path: LogPath, kind: str, robot_path: PathLike) -> None:
+    """Refuse a people or groups log that was not given (``None``)."""
+    if path is None:
+        needs = "the social metrics (m_psi, m_dir, m_fsi)" if kind == "people" else "m_fsi"
+        msg = (f"no {kind} log given or found: {needs} cannot be computed without it "
+               f"({kind}_path=False reads a run that logged none)")  # fmt: skip
+        raise InputError(msg, robot_path)
 
 
 @contextmanager
@@ -112,17 +158,27 @@ def _gc_paused():
 
 
 def _read_text(path: PathLike) -> str:
+    """The file's text; binary content (not UTF-8, or NUL bytes) is refused with its line."""
     try:
-        with open(path, encoding="utf-8") as f:
-            return f.read()
+        with open(path, "rb") as f:
+            data = f.read()
     except FileNotFoundError:
         raise InputError("no such file", path) from None
     except IsADirectoryError:
         raise InputError("is a directory, not a log file", path) from None
-    except UnicodeDecodeError:
-        raise InputError("not a UTF-8 text file", path) from None
     except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror}", path) from None
+        raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        msg = f"not a UTF-8 text file (byte 0x{data[exc.start]:02x}): a binary file?"
+        raise InputError(msg, path, line) from None
+    nul = text.find("\0")
+    if nul >= 0:
+        raise InputError("not a text file (NUL byte): a binary file?", path,
+                         text.count("\n", 0, nul) + 1)  # fmt: skip
+    return text
 
 
 class _Lines:
@@ -148,6 +204,12 @@ class _Lines:
         """An error located at the ``i``-th non-blank line."""
         return InputError(message, self.path, self.numbers[i])
 
+    def number(self, token: str, name: str, i: int) -> float:
+        """``token`` (column ``name`` of the ``i``-th line) as a float."""
+        if not _NUMBER.fullmatch(token):
+            raise self.error(f"column {name} is not a number: {token!r}", i)
+        return float(token)
+
     def floats(self, sel: Sequence[int], cols: Sequence[int], names: Sequence[str]) -> NDArray:
         """Token columns ``cols`` (named ``names``) of the lines ``sel`` as float64 numbers."""
         if len(sel) == 0:
@@ -158,51 +220,94 @@ class _Lines:
                 return np.loadtxt(texts, np.float64, comments=None, usecols=cols, ndmin=2)
             except ValueError:
                 pass  # locate the bad token below
-        tokens = [[self.rows[i][c] for c in cols] for i in sel]
-        for i, row in zip(sel, tokens, strict=True):
-            for name, token in zip(names, row, strict=True):
-                try:
-                    float(token)
-                except ValueError:
-                    raise self.error(f"column {name} is not a number: {token!r}", i) from None
-        return np.array(tokens, dtype=np.float64).reshape(len(sel), len(cols))
+        with _gc_paused():
+            values = [
+                [self.number(self.rows[i][c], name, i) for c, name in zip(cols, names, strict=True)]
+                for i in sel
+            ]
+        return np.array(values, dtype=np.float64).reshape(len(sel), len(cols))
 
 
-def _read_robot(path: PathLike) -> NDArray[np.float64]:
-    lines = _Lines(path)
+class _Robot:
+    """The robot log: its table (N, 12; ``ROBOT_FIELDS``), checked, and its lines."""
+
+    def __init__(self, path: PathLike) -> None:
+        lines = _Lines(path)
+        if not lines.rows:
+            raise InputError("the robot log holds no samples", path)
+        widths = lines.widths
+        bad = np.flatnonzero((widths != len(ROBOT_COLUMNS)) & (widths != len(ROBOT_COLUMNS_CMD)))
+        if bad.size:
+            msg = (f"expected {len(ROBOT_COLUMNS)} values (t + 23) or {len(ROBOT_COLUMNS_CMD)} "
+                   f"(t + 26) on a robot line, got {widths[bad[0]]}")  # fmt: skip
+            raise lines.error(msg, bad[0])
+        table = np.empty((len(lines.rows), len(ROBOT_FIELDS)))
+        for names in (ROBOT_COLUMNS, ROBOT_COLUMNS_CMD):
+            sel = np.flatnonzero(widths == len(names))
+            if sel.size:
+                values = lines.floats(sel, range(len(names)), names)
+                table[sel] = values[:, [names.index(f) for f in ROBOT_FIELDS]]
+        problem = invalid_robot_row(table)
+        if problem is not None:
+            raise lines.error(problem[1], problem[0])
+        self.table, self.lines = table, lines
+        self.t = table[:, 0]
+        order = np.argsort(self.t, kind="stable")
+        self._order, self._sorted = order, self.t[order]
+        # first sample carrying the time of each sample (times do not decrease)
+        self.first = np.searchsorted(self.t, self.t, side="left")
+
+    def where(self, sample: int) -> str:
+        """``t = ... (robot line L)`` of a sample, for messages."""
+        return f"t = {_fmt(self.t[sample])} (robot log line {self.lines.numbers[sample]})"
+
+    def match(self, t: NDArray, lines: _Lines, sel: NDArray, what: Sequence[str]) -> NDArray:
+        """Index of the first robot sample whose time equals each of ``t`` (lines ``sel``
+        of another log, holding a ``what[k]`` each)."""
+        pos = np.minimum(np.searchsorted(self._sorted, t, side="left"), self._sorted.size - 1)
+        bad = np.flatnonzero(self._sorted[pos] != t)
+        if bad.size:
+            i = int(bad[0])
+            msg = (f"{what[i]} at t = {lines.rows[sel[i]][0]} matches no robot sample (no "
+                   f"robot line has that time)")  # fmt: skip
+            if t[i] > self.t[-1]:
+                msg += f"; the robot log ends at {self.where(self.t.size - 1)}: truncated?"
+            raise lines.error(msg, int(sel[i]))
+        return self._order[pos]
+
+
+def _fmt(value: float) -> str:
+    return repr(float(value))
+
+
+def _line_samples(lines: _Lines, robot: _Robot, kind: str, what: Sequence[str]) -> NDArray:
+    """Robot sample of every line of a people or groups log, checked both ways: every line
+    has a finite time matching a robot sample, every robot sample has a line."""
     if not lines.rows:
-        raise InputError("the robot log holds no samples", path)
-    widths = lines.widths
-    bad = np.flatnonzero((widths != len(ROBOT_COLUMNS)) & (widths != len(ROBOT_COLUMNS_CMD)))
+        raise InputError(f"the {kind} log is empty: expected a line (a bare timestamp line "
+                         f"at least) for each of the {robot.t.size} robot samples",
+                         lines.path)  # fmt: skip
+    n = len(lines.rows)
+    t = lines.floats(np.arange(n), (0,), ("t",))[:, 0]
+    bad = np.flatnonzero(~np.isfinite(t))
     if bad.size:
-        msg = (f"expected {len(ROBOT_COLUMNS)} values (t + 23) or {len(ROBOT_COLUMNS_CMD)} "
-               f"(t + 26) on a robot line, got {widths[bad[0]]}")  # fmt: skip
-        raise lines.error(msg, bad[0])
-    robot = np.empty((len(lines.rows), len(ROBOT_FIELDS)))
-    for names in (ROBOT_COLUMNS, ROBOT_COLUMNS_CMD):
-        sel = np.flatnonzero(widths == len(names))
-        if sel.size:
-            values = lines.floats(sel, range(len(names)), names)
-            robot[sel] = values[:, [names.index(f) for f in ROBOT_FIELDS]]
-    return robot
-
-
-def _check_bare(lines: _Lines) -> None:
-    """Bare timestamp lines must hold a number."""
-    lines.floats(np.flatnonzero(lines.widths == 1), (0,), ("t",))
-
-
-def _match_samples(t: NDArray, t_robot: NDArray, tokens, lines: _Lines, sel, what: str) -> NDArray:
-    """Index of the first robot sample whose time equals each of ``t`` (lines ``sel``)."""
-    order = np.argsort(t_robot, kind="stable")
-    t_sorted = t_robot[order]
-    pos = np.minimum(np.searchsorted(t_sorted, t, side="left"), t_sorted.size - 1)
-    bad = np.flatnonzero(t_sorted[pos] != t)
-    if bad.size:
-        i = bad[0]
-        msg = f"{what} at t = {tokens[i]} matches no robot sample (no robot line has that time)"
-        raise lines.error(msg, sel[i])
-    return order[pos]
+        raise lines.error(f"t is {_fmt(t[bad[0]])}, expected a finite time (s)", int(bad[0]))
+    sample = robot.match(t, lines, np.arange(n), what)
+    covered = np.zeros(robot.t.size, dtype=np.bool_)
+    covered[sample] = True
+    missing = np.flatnonzero(~covered[robot.first])
+    if missing.size:
+        k = int(missing[0])
+        need = f"every robot sample needs a line in the {kind} log (a bare timestamp line at least)"
+        later = np.flatnonzero(t > robot.t[k])
+        if not later.size:
+            last = int(np.argmax(t))
+            msg = (f"the {kind} log ends at t = {lines.rows[last][0]} but the robot log goes on "
+                   f"to {robot.where(robot.t.size - 1)}: truncated? {need}")  # fmt: skip
+            raise lines.error(msg, n - 1)
+        msg = f"no line for the robot sample at {robot.where(k)} before this line; {need}"
+        raise lines.error(msg, int(later[0]))
+    return sample
 
 
 def _codes(texts: Sequence[str]) -> tuple[NDArray[np.int64], tuple[str, ...] | None]:
@@ -239,7 +344,7 @@ class _People:
         return np.where((keys[order][pos] == wanted) & (code >= 0), order[pos], -1)
 
 
-def _read_people(path: PathLike, t_robot: NDArray) -> _People:
+def _read_people(path: PathLike, robot: _Robot) -> _People:
     lines = _Lines(path)
     widths = lines.widths
     bad = np.flatnonzero((widths != 1) & (widths != len(PERSON_COLUMNS)))
@@ -247,20 +352,23 @@ def _read_people(path: PathLike, t_robot: NDArray) -> _People:
         msg = (f"expected {len(PERSON_COLUMNS)} values on a people line (or only the "
                f"timestamp), got {widths[bad[0]]}")  # fmt: skip
         raise lines.error(msg, bad[0])
-    _check_bare(lines)
     sel = np.flatnonzero(widths == len(PERSON_COLUMNS))
+    values = lines.floats(sel, _PERSON_NUMERIC, [PERSON_COLUMNS[j] for j in _PERSON_NUMERIC])
+    table = values[:, _PERSON_TAKE]
+    problem = invalid_person_row(table)
+    if problem is not None:
+        raise lines.error(problem[1], int(sel[problem[0]]))
+    what = np.where(widths == 1, "timestamp line", "person").tolist()
+    sample = _line_samples(lines, robot, "people", what)[sel]
     if not sel.size:
         return _People.empty()
-    values = lines.floats(sel, _PERSON_NUMERIC, [PERSON_COLUMNS[j] for j in _PERSON_NUMERIC])
-    t_tokens = [lines.rows[i][0] for i in sel]
-    sample = _match_samples(values[:, 0], t_robot, t_tokens, lines, sel, "person")
     code, labels = _codes([lines.rows[i][1] for i in sel])
     order = np.argsort(sample, kind="stable")
-    return _People(values[order][:, _PERSON_TAKE], sample[order], code[order], labels)
+    return _People(table[order], sample[order], code[order], labels)
 
 
-def _parse_group_line(lines: _Lines, i: int) -> tuple[float, str, list[str]]:
-    """Time, id and member ids of the ``i``-th line of a groups log (not a bare line)."""
+def _parse_group_line(lines: _Lines, i: int) -> tuple[str, list[str]]:
+    """Id and member ids of the ``i``-th line of a groups log (not a bare line)."""
     row = lines.rows[i]
     try:
         slash = row.index("/")
@@ -277,38 +385,31 @@ def _parse_group_line(lines: _Lines, i: int) -> tuple[float, str, list[str]]:
     numbers = [(row[j], name) for j, name in enumerate(GROUP_HEAD) if name != "id"]
     numbers += [(tail[j], "strength") for j in range(2, len(tail), 3)]
     for token, name in numbers:
-        try:
-            float(token)
-        except ValueError:
-            raise lines.error(f"column {name} is not a number: {token!r}", i) from None
-    return float(row[0]), row[1], row[len(GROUP_HEAD) : slash]
+        lines.number(token, name, i)
+    return row[1], row[len(GROUP_HEAD) : slash]
 
 
-def _read_groups(path: PathLike | None, t_robot: NDArray, people: _People):
+def _read_groups(path: PathLike, robot: _Robot, people: _People):
     """Group tables (sample, code, size, member rows) sorted by sample, and the labels.
 
     The tables are ``None`` when there is no group (``EpisodeRecord.from_arrays`` then
     leaves the group tables empty).
     """
-    if path is None:
-        return (None,) * 4, None
     lines = _Lines(path)
-    _check_bare(lines)
     sel = np.flatnonzero(lines.widths > 1)
-    if not sel.size:
-        return (None,) * 4, None
     with _gc_paused():
         parsed = [_parse_group_line(lines, i) for i in sel]
-    t = np.array([p[0] for p in parsed], dtype=np.float64)
-    t_tokens = [lines.rows[i][0] for i in sel]
-    sample = _match_samples(t, t_robot, t_tokens, lines, sel, "group")
-    code, labels = _codes([p[1] for p in parsed])
-    sizes = np.array([len(p[2]) for p in parsed], dtype=np.int64)
-    rows = people.find(np.repeat(sample, sizes), [m for p in parsed for m in p[2]])
+    what = np.where(lines.widths == 1, "timestamp line", "group").tolist()
+    sample = _line_samples(lines, robot, "groups", what)[sel]
+    if not sel.size:
+        return (None,) * 4, None
+    code, labels = _codes([p[0] for p in parsed])
+    sizes = np.array([len(p[1]) for p in parsed], dtype=np.int64)
+    rows = people.find(np.repeat(sample, sizes), [m for p in parsed for m in p[1]])
     missing = np.flatnonzero(rows < 0)
     if missing.size:
         g = int(np.searchsorted(np.cumsum(sizes), missing[0], side="right"))
-        member = parsed[g][2][missing[0] - int(sizes[:g].sum())]
+        member = parsed[g][1][missing[0] - int(sizes[:g].sum())]
         msg = f"group member {member!r} is not among the people at this group's timestamp"
         raise lines.error(msg, sel[g])
     order = np.argsort(sample, kind="stable")
@@ -325,16 +426,23 @@ def _gather(sizes: NDArray, order: NDArray) -> NDArray:
 
 
 # ---------------------------------------------------------------------------- writing
-_F4, _F6 = " %9.4f", " %9.6f"
-_Z4, _Z6 = "    0.0000", "  0.000000"
-_ROBOT_FMT = (
-    "%9.4f" + _F4 * 2 + _Z4 + _F4 + _Z4 * 5 + _F4 * 2 + _Z4 + _F4 + _Z4 * 5 + _F4 * 5 + "\n"
-)
-_PERSON_FMT = (
-    "%9.4f %6s    1.0000" + _F4 * 2 + _Z4 + _F4 + _F6 * 4 + _Z6 + _F4 * 2 + _Z4 * 2 + _Z6 * 5
-    + "      0            0 1 0 %6s"
-)  # fmt: skip
-_GROUP_FMT = "%9.4f %6s" + _F4 * 2 + _Z4 + "            0 "
+class _Formats:
+    """Line formats of the native logs for a number of decimals (``None``: exact)."""
+
+    def __init__(self, precision: int | None) -> None:
+        if precision is None:
+            num = cov = "%9r"  # repr: the shortest text that reads back as the same float
+        elif isinstance(precision, int) and not isinstance(precision, bool) and precision >= 0:
+            num, cov = f"%9.{precision}f", f"%9.{precision + 2}f"
+        else:
+            raise ValueError(f"precision must be None or a whole number >= 0, got {precision!r}")
+        f, c = " " + num, " " + cov
+        z, zc = " " + num % 0.0, " " + cov % 0.0
+        self.num = num
+        self.robot = num + f * 2 + z + f + z * 5 + f * 2 + z + f + z * 5 + f * 5 + "\n"
+        self.person = (num + " %6s " + num % 1.0 + f * 2 + z + f + c * 4 + zc + f * 2 + z * 2
+                       + zc * 5 + "      0            0 1 0 %6s")  # fmt: skip
+        self.group = num + " %6s" + f * 2 + z + "            0 "
 
 
 def write_native(
@@ -342,25 +450,54 @@ def write_native(
     robot_path: PathLike,
     people_path: PathLike | None,
     groups_path: PathLike | None,
+    precision: int | None = None,
 ) -> None:
     """Write ``record`` as SRPB native logs (t + 23 robot variant); ``None`` skips a file.
 
-    Fixed point with 4 decimals (person covariances 6). Fields the record does not hold are
-    written as zeros (z, the robot pose and velocity covariances, vz, person omega), people
-    reliability 1, detection_id 0, track_age 0, matched 1, occluded 0; a person's group
-    column names the first group holding it at that sample (else ``none``); a group's cog is
-    the mean of its members' positions and its age 0. Ids are written as
-    ``record.person_label(id)`` / ``record.group_label(id)`` and must be non-empty and free
-    of whitespace (``ValueError`` otherwise). Timestamps closer than 5e-5 s may collapse
-    into one on rounding.
+    ``precision``: ``None`` (default) writes every number exactly (Python's ``repr``, the
+    shortest text that reads back as the same float: ``0.1``, ``1e-05``, ``nan``), so that
+    :func:`read_native` gives back the record's values bit for bit and the metrics of the
+    logs equal those of the record. A whole number k writes fixed point with k decimals
+    (person covariances k + 2): ``precision=4`` gives the reference logger's files byte
+    for byte. Either way fields are separated by single spaces and padded to 9 characters
+    as the reference logger does, and its reader (``std::stod``) reads them.
+
+    Fields the record does not hold are written as zeros (z, the robot pose and velocity
+    covariances, vz, person omega), people reliability 1, detection_id 0, track_age 0,
+    matched 1, occluded 0; a person's group column names the first group holding it at that
+    sample (else ``none``); a group's cog is the mean of its members' positions and its age
+    0. Ids are written as ``record.person_label(id)`` / ``record.group_label(id)`` and must
+    be non-empty and free of whitespace. ``ValueError`` for such a label, and for people or
+    groups at a sample whose written timestamp equals an earlier sample's (a reader would
+    attach them to that earlier sample; with a fixed precision, timestamps closer than
+    half its last digit collapse).
     """
+    fmt = _Formats(precision)
     robot = record.robot
     cols = [ROBOT_FIELDS.index(f) for f in ROBOT_COLUMNS if f in ROBOT_FIELDS]
-    _write(robot_path, _ROBOT_FMT * robot.shape[0] % tuple(robot[:, cols].ravel().tolist()))
+    stamps = [fmt.num % v for v in robot[:, 0].tolist()]
+    _check_stamps(stamps, record.people_sample, "people")
+    _check_stamps(stamps, record.group_sample, "groups")
+    _write(robot_path, fmt.robot * robot.shape[0] % tuple(robot[:, cols].ravel().tolist()))
     if people_path is not None:
-        _write(people_path, _people_text(record))
+        _write(people_path, _people_text(record, fmt, stamps))
     if groups_path is not None:
-        _write(groups_path, _groups_text(record))
+        _write(groups_path, _groups_text(record, fmt, stamps))
+
+
+def _check_stamps(stamps: list[str], sample: NDArray, what: str) -> None:
+    """Refuse rows at a sample whose timestamp text an earlier sample already carries."""
+    if not sample.size:
+        return
+    first: dict[str, int] = {}
+    owner = np.array([first.setdefault(s, k) for k, s in enumerate(stamps)], dtype=np.int64)
+    clash = np.flatnonzero(owner[sample] != sample)
+    if clash.size:
+        k = int(sample[clash[0]])
+        stamp = stamps[k].strip()
+        raise ValueError(f"{what} at sample {k} cannot be written: its timestamp {stamp} "
+                         f"equals sample {int(owner[k])}'s, to which a reader would attach "
+                         f"them")  # fmt: skip
 
 
 def _write(path: PathLike, text: str) -> None:
@@ -379,15 +516,15 @@ def _labels(ids: NDArray, label: Callable[[int], str], what: str) -> NDArray:
     return np.array(texts, dtype=object)[inverse.reshape(-1)]
 
 
-def _merge_bare(t: NDArray, sample: NDArray, lines: list[str]) -> str:
+def _merge_bare(stamps: list[str], sample: NDArray, lines: list[str]) -> str:
     """Lines of the entity rows, with a bare timestamp line for every sample without any."""
-    empty = np.flatnonzero(np.bincount(sample, minlength=t.size) == 0)
-    all_lines = lines + [f"{v:9.4f}" for v in t[empty].tolist()]
+    empty = np.flatnonzero(np.bincount(sample, minlength=len(stamps)) == 0)
+    all_lines = lines + [stamps[k] for k in empty.tolist()]
     order = np.argsort(np.concatenate([sample, empty]), kind="stable")
     return "".join(all_lines[i] + "\n" for i in order.tolist())
 
 
-def _people_text(record: EpisodeRecord) -> str:
+def _people_text(record: EpisodeRecord, fmt: _Formats, stamps: list[str]) -> str:
     t = record.robot[:, 0]
     table, sample = record.people, record.people_sample
     group_of = np.full(sample.size, "none", dtype=object)
@@ -401,11 +538,11 @@ def _people_text(record: EpisodeRecord) -> str:
     cells[:, 1] = _labels(record.people_id, record.person_label, "person")
     cells[:, 2:11] = table
     cells[:, 11] = group_of
-    lines = [_PERSON_FMT % tuple(row) for row in cells.tolist()]
-    return _merge_bare(t, sample, lines)
+    lines = [fmt.person % tuple(row) for row in cells.tolist()]
+    return _merge_bare(stamps, sample, lines)
 
 
-def _groups_text(record: EpisodeRecord) -> str:
+def _groups_text(record: EpisodeRecord, fmt: _Formats, stamps: list[str]) -> str:
     t = record.robot[:, 0]
     sample, sizes, members = record.group_sample, record.group_size, record.group_members
     lines: list[str] = []
@@ -415,7 +552,7 @@ def _groups_text(record: EpisodeRecord) -> str:
         cog = np.add.reduceat(xy, starts, axis=0) / sizes[:, None]
         names = _labels(record.group_id, record.group_label, "group")
         heads = [
-            _GROUP_FMT % row
+            fmt.group % row
             for row in zip(t[sample].tolist(), names.tolist(), *cog.T.tolist(), strict=True)
         ]
         member_names = _labels(record.people_id[members], record.person_label, "person")
@@ -424,4 +561,4 @@ def _groups_text(record: EpisodeRecord) -> str:
             head + "".join(cells[s : s + k]) + " / "
             for head, s, k in zip(heads, starts.tolist(), sizes.tolist(), strict=True)
         ]
-    return _merge_bare(t, sample, lines)
+    return _merge_bare(stamps, sample, lines)
