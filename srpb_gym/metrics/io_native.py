@@ -9,7 +9,8 @@ global-frame.
 
 Reading rules ("no silent wrong numbers": what cannot be right is refused):
 
-- Blank lines are skipped; line numbers in errors are 1-based and count every line.
+- Lines end at ``\n`` (a ``\r`` before it is whitespace); blank lines are skipped; line
+  numbers in errors are 1-based and count every line.
 - Robot lines hold t + 23 values, or t + 26 values (a newer logger inserts ``cmd_vx cmd_vy
   cmd_omega`` before ``obstacle_dist``); both may appear in one file.
 - Numbers have the standard decimal syntax (``1.5``, ``-2e-3``, ``nan``, ``inf``; no
@@ -192,7 +193,7 @@ class _Lines:
         self.texts: list[str] = []
         self.rows: list[list[str]] = []
         with _gc_paused():
-            for i, line in enumerate(text.splitlines(), start=1):
+            for i, line in enumerate(text.split("\n"), start=1):
                 tokens = line.split()
                 if tokens:
                     self.numbers.append(i)

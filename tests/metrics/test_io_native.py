@@ -557,6 +557,16 @@ def test_empty_people_or_groups_log(tmp_path, kind):
     )
 
 
+def test_line_numbers_count_newlines_only(tmp_path):
+    """Windows line ends and stray form feeds do not shift the reported line."""
+    path = tmp_path / "r_robot.txt"
+    text = "\r\n".join([R0, R1.replace(" 0 0 0 ", " 0 \x0c 0 0 ", 1), _robot_with(0.2, x="nan")])
+    path.write_bytes(text.encode())
+    with pytest.raises(InputError) as info:
+        read_native(path, False, False)
+    assert (info.value.line, info.value.message) == (3, "x is nan, expected a finite number (m)")
+
+
 @pytest.mark.parametrize("lines", [[], ["", "  ", "\t"]])
 def test_empty_robot_log(tmp_path, lines):
     path = _write(tmp_path / "r_robot.txt", lines)
