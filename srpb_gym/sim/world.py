@@ -15,7 +15,8 @@ push them but never through a wall.
 
 All bodies are read and written in one batch call each (``pymunk.batch``). Collisions of
 each robot with walls, people and other robots are reported per control step through
-pymunk collision callbacks.
+pymunk collision callbacks: every robot has its own collision type, so each pair of types
+has its own handler that knows which robots and which kind of contact it reports.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from numpy.typing import NDArray
 
 from srpb_gym.sim.robot import RobotConfig
 
-ROBOT, WALL, PERSON = 1, 2, 3
+WALL, PERSON, ROBOT = 2, 3, 16  # collision types; robot i has ROBOT + i
 PERSON_MASS = 70.0  # kg
 COLLISION_SLOP = 0.001  # m, overlap pymunk tolerates before pushing bodies apart
 
@@ -61,14 +62,18 @@ class World:
             seg.collision_type, seg.friction, seg.elasticity = WALL, 0.0, 0.0
             space.add(seg)
         self.n_robots, self.n_people = len(robots), int(people_xy.shape[0])
-        self._robot_bodies, self._controls, self._robot_of = [], [], {}
+        self._robot_bodies, self._controls = [], []
         for i, (cfg, pose) in enumerate(robots):
             self._add_robot(i, cfg, pose)
         self._people_bodies = [self._add_person(p, r) for p, r in zip(people_xy, people_radius)]
         # contacts per robot (wall, person, robot) since the caller last cleared them
         self.collisions = np.zeros((self.n_robots, 3), dtype=np.bool_)
-        for other, col in ((WALL, 0), (PERSON, 1), (ROBOT, 2)):
-            space.on_collision(ROBOT, other, pre_solve=self._on_contact, data=col)
+        for i in range(self.n_robots):  # the handler's data: the robots and the column
+            space.on_collision(ROBOT + i, WALL, pre_solve=self._on_contact, data=(i, 0))
+            space.on_collision(ROBOT + i, PERSON, pre_solve=self._on_contact, data=(i, 1))
+            for j in range(i + 1, self.n_robots):
+                space.on_collision(ROBOT + i, ROBOT + j, pre_solve=self._on_contact,
+                                   data=((i, j), 2))  # fmt: skip
         self._init_batch()
 
     # ------------------------------------------------------------------ building
@@ -76,7 +81,7 @@ class World:
         body = pymunk.Body(cfg.mass, pymunk.moment_for_circle(cfg.mass, 0.0, cfg.radius))
         body.position, body.angle = (pose[0], pose[1]), pose[2]
         shape = pymunk.Circle(body, cfg.radius + cfg.bumper)
-        shape.collision_type, shape.friction, shape.elasticity = ROBOT, 0.0, 0.0
+        shape.collision_type, shape.friction, shape.elasticity = ROBOT + index, 0.0, 0.0
         control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         control.position, control.angle = body.position, body.angle
         pivot = pymunk.PivotJoint(control, body, (0, 0), (0, 0))
@@ -86,7 +91,6 @@ class World:
         self.space.add(body, shape, control, pivot, gear)
         self._robot_bodies.append(body)
         self._controls.append(control)
-        self._robot_of[shape] = index
 
     def _add_person(self, xy: NDArray[np.float64], radius: float) -> pymunk.Body:
         body = pymunk.Body(PERSON_MASS, float("inf"))
@@ -138,11 +142,9 @@ class World:
         self._init_batch()
         self.collisions[:] = collisions
 
-    def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, col: int) -> None:
-        for shape in arbiter.shapes:
-            index = self._robot_of.get(shape)
-            if index is not None:
-                self.collisions[index, col] = True
+    def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple) -> None:
+        robots, col = data  # every pair of collision types has its own handler
+        self.collisions[robots, col] = True
 
     # ------------------------------------------------------------------ stepping
     def step(
