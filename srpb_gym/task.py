@@ -44,8 +44,6 @@ from srpb_gym.simulation import Simulation
 
 COLLISION_MODES = ("terminate", "continue")
 METRIC_KEYS = ("semantics", "preset", "params")
-#: metric parameters that describe the robot; taken from its config unless set explicitly
-ROBOT_PARAMS = ("robot_circumradius", "robot_max_speed")
 
 
 def robot_max_speed(robot: RobotConfig) -> float:
