@@ -93,9 +93,12 @@ class _Refused(yaml.MarkedYAMLError):
         super().__init__(problem=problem, problem_mark=mark)
 
 
-def read_yaml(text: str, file: str | None = None) -> tuple[Any, dict[str, int]]:
-    """Plain data from YAML text (one document, not empty) and the 1-based line of every
-    dotted key in it (``""`` for the top level, ``"a.b[2]"`` for an item)."""
+def read_yaml(text: str | bytes, file: str | None = None) -> tuple[Any, dict[str, int]]:
+    """Plain data from YAML text (one document, not empty; bytes must be UTF-8) and the
+    1-based line of every dotted key in it (``""`` for the top level, ``"a.b[2]"`` for an
+    item)."""
+    if isinstance(text, (bytes, bytearray)):
+        text = decode(bytes(text), file)
     try:
         loader = _Loader(text)
         try:

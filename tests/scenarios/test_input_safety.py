@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import codecs
-import os
 import time
 
 import gymnasium as gym
@@ -192,17 +191,24 @@ def test_folders_and_non_paths_are_refused(tmp_path):
     assert str(info.value) == "scenario: expected a scenario name or file path, got None"
 
 
-@pytest.mark.skipif(os.name != "posix" or os.geteuid() == 0, reason="root reads any file")
-def test_unreadable_file(tmp_path):
-    path = _write(tmp_path, GOOD)
-    path.chmod(0)
-    assert _refusal(path) == f"{path}: cannot read the file: Permission denied"
+def test_unreadable_file():
+    class Locked:
+        def open(self, mode):
+            raise PermissionError(13, "Permission denied")
+
+    with pytest.raises(InputError) as info:
+        yaml_io.read_file(Locked(), "locked.yaml")
+    assert str(info.value) == "locked.yaml: cannot read the file: Permission denied"
 
 
 def test_parse_scenario_text_errors_name_the_file():
     with pytest.raises(InputError) as info:
         parse_scenario("a: [\n", "given.yaml")
     assert str(info.value).startswith("given.yaml:2: invalid YAML: ")
+    with pytest.raises(InputError) as info:
+        parse_scenario(b"name: caf\xe9\n", "given.yaml")
+    assert str(info.value) == "given.yaml:1: not UTF-8 text (byte 0xe9); save the file as UTF-8"
+    assert parse_scenario(GOOD.encode(), "given.yaml").name == "test"
 
 
 # --- 3. polygons ----------------------------------------------------------------------------
