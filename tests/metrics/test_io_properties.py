@@ -51,6 +51,10 @@ def _record(seed: int) -> EpisodeRecord:
     return rec
 
 
+def _finite(token: str) -> bool:
+    return bool(np.isfinite(float(token)))
+
+
 def _written(rec: EpisodeRecord, folder: Path) -> dict[str, Path]:
     paths = {kind: folder / f"e_{kind}.txt" for kind in ("robot", "people", "groups")}
     write_native(rec, paths["robot"], paths["people"], paths["groups"])
@@ -99,6 +103,7 @@ def test_a_log_with_a_value_that_cannot_be_right_is_refused(tmp_path, seed, bad)
     candidates = [i for i, line in enumerate(lines) if width is None or len(line.split()) == width]
     if not candidates:  # nobody at any sample: corrupt a bare timestamp line instead
         candidates, column, field = list(range(len(lines))), 0, "t"
+        token = token if not _finite(token) else "nan"
     i = candidates[pick % len(candidates)]
     tokens = lines[i].split()
     tokens[column] = token
