@@ -12,29 +12,20 @@ import math
 import time
 import uuid
 from collections.abc import Mapping
-from dataclasses import replace
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.episode_setup import RESET_OPTIONS, build_simulation, episode_layout, out_of_time
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import MetricParams
-from srpb_gym.perception.detector import DetectorConfig
-from srpb_gym.perception.lidar import LidarConfig
-from srpb_gym.perception.tracker import TrackerConfig
 from srpb_gym.planners.base import Knowledge
-from srpb_gym.scenarios import load_scenario, sample
-from srpb_gym.scenarios.sampler import free_space_of
-from srpb_gym.sim.crowd import SocialForceConfig
-from srpb_gym.sim.layout import EpisodeLayout, RobotLayout
+from srpb_gym.scenarios import load_scenario
+from srpb_gym.sim.layout import EpisodeLayout
 from srpb_gym.sim.robot import RobotConfig
-from srpb_gym.simulation import SimConfig, Simulation
 from srpb_gym.task import COLLISION_MODES, RobotTask, build_task
-
-RESET_OPTIONS = ("people", "start", "goal")
-SENSORS = ("lidar", "detector", "tracker")
 
 __all__ = ["COLLISION_MODES", "RESET_OPTIONS", "SRPBNavEnv", "StepLimitSync"]
 
@@ -163,7 +154,7 @@ class SRPBNavEnv(gym.Env):
         self.render_mode = render_mode
         robot_cfg = RobotConfig.from_spec(robot)
         self.scenario = load_scenario(scenario, robot_radius=robot_cfg.radius)
-        self.sim = _build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
+        self.sim = build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
         self.task: RobotTask = build_task(
             self.sim, 0, self.scenario.robot.goal_tolerance, observation, reward,
             reward_weights, collision, metrics, record_dir,
@@ -293,39 +284,10 @@ class SRPBNavEnv(gym.Env):
 
     # ------------------------------------------------------------------ internals
     def _out_of_time(self) -> bool:
-        if self._step_limit is not None and self._steps >= self._step_limit:
-            return True
-        return self.sim.t >= self.sim.layout.time_limit - 1e-9
+        return out_of_time(self.sim, self._steps, self._step_limit)
 
     def _layout(self, options: dict[str, Any] | None) -> EpisodeLayout:
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(RESET_OPTIONS))
-        if unknown:
-            raise InputError(f"unknown reset option; valid: {', '.join(RESET_OPTIONS)}",
-                             key=f"options.{unknown[0]}")  # fmt: skip
-        layout = sample(self.scenario, self.np_random)
-        if not options.get("people", True):
-            layout = replace(layout, people=(), formations=())
-        if "start" in options or "goal" in options:
-            robot = layout.robots[0]
-            start = _pose_option(options.get("start", robot.start), "start")
-            goal = _pose_option(options.get("goal", robot.goal), "goal")
-            self._check_poses(start, goal)
-            layout = replace(layout, robots=(RobotLayout(start, goal),))
-        return layout
-
-    def _check_poses(self, start: tuple[float, ...], goal: tuple[float, ...]) -> None:
-        """A start and goal from reset options must hold the robot and be connected."""
-        space = free_space_of(self.scenario)
-        radius = self.sim.robot_config.radius
-        for name, (x, y, _) in (("start", start), ("goal", goal)):
-            if not space.is_clear(x, y, radius):
-                raise InputError(f"a robot of radius {radius:g} m at ({x:g}, {y:g}) overlaps a "
-                                 f"wall, an obstacle or the world's edge",
-                                 key=f"options.{name}")  # fmt: skip
-        if space.label_at(*start[:2]) != space.label_at(*goal[:2]):
-            raise InputError(f"the goal is not reachable from the start for a robot of radius "
-                             f"{radius:g} m", key="options.goal")  # fmt: skip
+        return episode_layout(self.scenario, self.np_random, options)
 
 
 class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):
@@ -348,36 +310,3 @@ class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):
             registered = gym.registry.get(spec.id) if spec is not None else None
             if registered is not None and registered.max_episode_steps == limit:
                 base._warn_short_limit()  # the registered default, not the user's choice
-
-
-def _build_simulation(
-    scenario: Any, sim: Mapping[str, Any] | None, robot: RobotConfig,
-    sensors: Mapping[str, Any] | None, crowd: Mapping[str, Any] | None,
-) -> Simulation:  # fmt: skip
-    """The simulation of the environment's arguments; sensors default to the scenario's."""
-    sensors = dict(sensors or {})
-    unknown = sorted(set(sensors) - set(SENSORS))
-    if unknown:
-        raise InputError(f"unknown sensor; valid: {', '.join(SENSORS)}",
-                         key=f"sensors.{unknown[0]}")  # fmt: skip
-    spec = scenario.sensors
-    return Simulation(
-        SimConfig.from_spec(sim),
-        robot,
-        LidarConfig.from_spec(sensors.get("lidar", spec.lidar), "sensors.lidar"),
-        DetectorConfig.from_spec(sensors.get("detector", spec.detector), "sensors.detector"),
-        TrackerConfig.from_spec(sensors.get("tracker", spec.tracker), "sensors.tracker"),
-        SocialForceConfig.from_spec(crowd, "crowd"),
-    )
-
-
-def _pose_option(value: Any, name: str) -> tuple[float, float, float]:
-    """An (x, y, yaw) reset option as floats; anything else is an error naming the key."""
-    try:
-        pose = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        pose = ()
-    if len(pose) != 3 or not all(map(math.isfinite, pose)):
-        raise InputError(f"expected (x, y, yaw), three finite numbers [m, m, rad], got "
-                         f"{value!r}", key=f"options.{name}")  # fmt: skip
-    return pose  # type: ignore[return-value]

@@ -1,0 +1,118 @@
+"""What the environment adapters share: building the simulation from plain-data arguments,
+drawing an episode's layout with the reset options, and the episode's time limit."""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from srpb_gym.errors import InputError
+from srpb_gym.perception.detector import DetectorConfig
+from srpb_gym.perception.lidar import LidarConfig
+from srpb_gym.perception.tracker import TrackerConfig
+from srpb_gym.scenarios import Scenario, sample
+from srpb_gym.scenarios.sampler import free_space_of
+from srpb_gym.sim.crowd import SocialForceConfig
+from srpb_gym.sim.layout import EpisodeLayout, RobotLayout
+from srpb_gym.sim.robot import RobotConfig
+from srpb_gym.simulation import SimConfig, Simulation
+
+RESET_OPTIONS = ("people", "start", "goal")
+SENSORS = ("lidar", "detector", "tracker")
+
+
+def build_simulation(
+    scenario: Scenario, sim: Mapping[str, Any] | None, robot: RobotConfig,
+    sensors: Mapping[str, Any] | None, crowd: Mapping[str, Any] | None,
+) -> Simulation:  # fmt: skip
+    """The simulation of an environment's arguments; sensors default to the scenario's."""
+    sensors = dict(sensors or {})
+    unknown = sorted(set(sensors) - set(SENSORS))
+    if unknown:
+        raise InputError(f"unknown sensor; valid: {', '.join(SENSORS)}",
+                         key=f"sensors.{unknown[0]}")  # fmt: skip
+    spec = scenario.sensors
+    return Simulation(
+        SimConfig.from_spec(sim),
+        robot,
+        LidarConfig.from_spec(sensors.get("lidar", spec.lidar), "sensors.lidar"),
+        DetectorConfig.from_spec(sensors.get("detector", spec.detector), "sensors.detector"),
+        TrackerConfig.from_spec(sensors.get("tracker", spec.tracker), "sensors.tracker"),
+        SocialForceConfig.from_spec(crowd, "crowd"),
+    )
+
+
+def episode_layout(
+    scenario: Scenario,
+    rng: np.random.Generator,
+    options: Mapping[str, Any] | None,
+    n_robots: int = 1,
+    *,
+    strict: bool = True,
+) -> EpisodeLayout:
+    """The layout of one episode: drawn from ``scenario`` with ``rng``, changed by the
+    reset options ``people`` (False: nobody) and, with one robot, ``start`` and ``goal``
+    ((x, y, yaw) [m, m, rad], checked to hold the robot and to be connected).
+
+    An unknown option is an error, or with ``strict=False`` a warning (PettingZoo's API
+    test passes options of its own)."""
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(RESET_OPTIONS))
+    if unknown:
+        message = f"unknown reset option; valid: {', '.join(RESET_OPTIONS)}"
+        if strict:
+            raise InputError(message, key=f"options.{unknown[0]}")
+        warnings.warn(f"options.{unknown[0]}: {message}; ignored", stacklevel=3)
+    layout = sample(scenario, rng) if n_robots == 1 else sample(scenario, rng, n_robots=n_robots)
+    if not options.get("people", True):
+        layout = replace(layout, people=(), formations=())
+    if "start" in options or "goal" in options:
+        if n_robots != 1:
+            raise InputError(
+                "start and goal options need a single robot",
+                key="options.start" if "start" in options else "options.goal",
+            )
+        robot = layout.robots[0]
+        start = _pose_option(options.get("start", robot.start), "start")
+        goal = _pose_option(options.get("goal", robot.goal), "goal")
+        _check_poses(scenario, start, goal)
+        layout = replace(layout, robots=(RobotLayout(start, goal),))
+    return layout
+
+
+def out_of_time(sim: Simulation, steps: int, step_limit: int | None) -> bool:
+    """Whether the episode is over by the scenario's time limit or the step limit."""
+    if step_limit is not None and steps >= step_limit:
+        return True
+    return sim.t >= sim.layout.time_limit - 1e-9
+
+
+def _check_poses(scenario: Scenario, start: tuple[float, ...], goal: tuple[float, ...]) -> None:
+    """A start and goal from reset options must hold the robot and be connected."""
+    space = free_space_of(scenario)
+    radius = scenario.robot_radius
+    for name, (x, y, _) in (("start", start), ("goal", goal)):
+        if not space.is_clear(x, y, radius):
+            raise InputError(f"a robot of radius {radius:g} m at ({x:g}, {y:g}) overlaps a "
+                             f"wall, an obstacle or the world's edge",
+                             key=f"options.{name}")  # fmt: skip
+    if space.label_at(*start[:2]) != space.label_at(*goal[:2]):
+        raise InputError(f"the goal is not reachable from the start for a robot of radius "
+                         f"{radius:g} m", key="options.goal")  # fmt: skip
+
+
+def _pose_option(value: Any, name: str) -> tuple[float, float, float]:
+    """An (x, y, yaw) reset option as floats; anything else is an error naming the key."""
+    try:
+        pose = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        pose = ()
+    if len(pose) != 3 or not all(map(math.isfinite, pose)):
+        raise InputError(f"expected (x, y, yaw), three finite numbers [m, m, rad], got "
+                         f"{value!r}", key=f"options.{name}")  # fmt: skip
+    return pose  # type: ignore[return-value]
