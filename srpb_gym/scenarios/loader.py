@@ -1,7 +1,9 @@
-"""Reading scenario files: YAML with line numbers, strict typed parsing, packaged scenarios.
+"""Reading scenario files: strict typed parsing of each section, packaged scenarios.
 
 ``load_scenario("corridor")`` loads the packaged ``corridor.yaml``; a path loads that file.
-Every key is checked: an unknown key, a value of the wrong type or out of range raises
+The file is read by :mod:`~srpb_gym.scenarios.yaml_io` (size, encoding, aliases, syntax)
+and its values by :class:`~srpb_gym.scenarios.reader.Reader`. Every key is checked: an
+unknown key, a value of the wrong type or out of range raises
 :class:`~srpb_gym.errors.InputError` as ``file:line: dotted.key: what is wrong``. The loaded
 scenario is then checked geometrically by :func:`~srpb_gym.scenarios.validate.validate`.
 """

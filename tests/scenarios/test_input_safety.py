@@ -82,7 +82,7 @@ def test_alias_bomb_through_gym_make(tmp_path):
     start = time.perf_counter()
     with pytest.raises(InputError, match=r"bad\.yaml:20: aliases \(\*lol0\) are not supported"):
         gym.make("SRPB-Custom-v0", scenario=str(path))
-    assert time.perf_counter() - start < 0.5
+    assert time.perf_counter() - start < 1.0  # it hung for over a minute
 
 
 def test_any_alias_is_refused(tmp_path):
