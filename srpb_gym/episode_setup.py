@@ -31,6 +31,9 @@ def build_simulation(
     sensors: Mapping[str, Any] | None, crowd: Mapping[str, Any] | None,
 ) -> Simulation:  # fmt: skip
     """The simulation of an environment's arguments; sensors default to the scenario's."""
+    if sensors is not None and not isinstance(sensors, Mapping):
+        raise InputError(f"expected a mapping of {', '.join(SENSORS)} to presets or settings, "
+                         f"got {sensors!r}", key="sensors")  # fmt: skip
     sensors = dict(sensors or {})
     unknown = sorted(set(sensors) - set(SENSORS))
     if unknown:

@@ -293,6 +293,7 @@ def test_holonomic_robot_has_three_action_dims():
         ({"sim": {"physics_dt": 0.03}}, "whole multiple"),
         ({"observation": {"lidar_bins": 1000}}, "lidar_bins: 1000 lidar sectors need"),
         ({"metrics": "paper"}, "metrics: expected a mapping"),
+        ({"sensors": [1]}, "sensors: expected a mapping"),
     ],
 )
 def test_bad_arguments(kwargs, message):
