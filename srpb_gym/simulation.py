@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from srpb_gym.config import from_spec
@@ -110,6 +111,9 @@ class Simulation:
         self._acc = np.array([c.acc_lin, c.acc_lin, c.acc_ang])
         self._exact_distance = self.config.obstacle_distance == "exact"
         self._lateral = self.robot_config.kinematics == "holonomic"
+        cfg = self.config  # crowd updates per step, physics substeps per update, their dt
+        rounds, sub = (cfg.substeps, 1) if cfg.crowd_every_substep else (1, cfg.substeps)
+        self._rounds = rounds, sub, cfg.physics_dt * sub
 
     @classmethod
     def from_scenario(
@@ -161,7 +165,10 @@ class Simulation:
         self._robot_radius = np.full(n_robots, self.robot_config.radius)
         self.robots = [self._robot_state(r.goal) for r in layout.robots]
         self._init_group_buffers()
+        self._reserve_records()
         self._planning_time = None
+        self.circles[: self.n_people, :2] = self.world.people_xy
+        self.circles[self.n_people :, :2] = self.world.robot_pose[:, :2]
         self._sense_and_record()
 
     def _init_group_buffers(self) -> None:
@@ -171,6 +178,16 @@ class Simulation:
         self._form_counts = np.zeros(crowd.formation_centers.shape[0], dtype=np.int64)
         self._gt_groups = self._collect_groups(np.arange(p, dtype=np.int64), MIN_GROUP)
         self._group_scratch = np.zeros((5, self.tracker_config.max_tracks), dtype=np.int64)
+
+    def _reserve_records(self) -> None:
+        """Size the records for the layout's time limit (they grow beyond it if need be), so
+        that they are not copied as they grow: people rows for everyone (the tracked ones
+        are fewer; untouched memory costs nothing)."""
+        n = int(self.layout.time_limit / self.config.control_dt) + 2
+        p, (gids, _, members) = self.n_people, self._gt_groups
+        for state in self.robots:
+            state.record.reserve(n, n * p, n * gids.shape[0], n * members.shape[0])
+            state.gt_record.reserve(n, n * p, n * gids.shape[0], n * members.shape[0])
 
     def _robot_state(self, goal: Sequence[float]) -> RobotState:
         lidar = Lidar(self.lidar_config)
@@ -201,28 +218,24 @@ class Simulation:
                        self.command)  # fmt: skip
         before = world.robot_pose.copy()
         self._advance_physics()
-        measure_velocity(before, world.robot_pose, dt, self.velocity)
+        _after_physics(before, world.robot_pose, world.people_xy, dt, self.velocity, self.circles)
         self.steps += 1
         self.t = self.steps * dt
         self._sense_and_record()
 
     def _advance_physics(self) -> None:
-        cfg, world, crowd = self.config, self.world, self.crowd
-        rounds, sub = (cfg.substeps, 1) if cfg.crowd_every_substep else (1, cfg.substeps)
-        world.collisions[:] = False
-        dt = cfg.physics_dt * sub
+        world, crowd, cmd = self.world, self.crowd, self._world_cmd
+        rounds, sub, dt = self._rounds
+        world.collisions.fill(False)
         for k in range(rounds):
-            body_to_world(self.command, world.robot_pose, dt, self._world_cmd)
-            v = crowd.desired_velocity(self.t + k * dt, dt, world.robot_pose, self._world_cmd,
+            body_to_world(self.command, world.robot_pose, dt, cmd)
+            v = crowd.desired_velocity(self.t + k * dt, dt, world.robot_pose, cmd,
                                        self._robot_radius, self.walls, self.rng)  # fmt: skip
-            world.step(self._world_cmd, v, sub)
+            world.step(cmd, v, sub)
             crowd.sync(world.people_xy, world.people_velocity)
 
     # ------------------------------------------------------------------ sensing
     def _sense_and_record(self) -> None:
-        pose = self.world.robot_pose
-        self.circles[: self.n_people, :2] = self.world.people_xy
-        self.circles[self.n_people :, :2] = pose[:, :2]
         for r, state in enumerate(self.robots):
             detected = self._sense(r, state)
             self._track(state, detected)
@@ -294,3 +307,15 @@ class Simulation:
     def collisions(self) -> NDArray[np.bool_]:
         """(R, 3) contacts of each robot during the last step: wall, person, robot."""
         return self.world.collisions
+
+
+@njit(cache=True, error_model="numpy")
+def _after_physics(before, pose, people_xy, dt, velocity, circles):
+    """The robots' measured velocity (:func:`~srpb_gym.sim.robot.measure_velocity`) and the
+    body circles at their new positions (people first, then robots)."""
+    measure_velocity(before, pose, dt, velocity)
+    p = people_xy.shape[0]
+    for i in range(p):
+        circles[i, 0], circles[i, 1] = people_xy[i, 0], people_xy[i, 1]
+    for r in range(pose.shape[0]):
+        circles[p + r, 0], circles[p + r, 1] = pose[r, 0], pose[r, 1]
