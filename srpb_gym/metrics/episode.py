@@ -14,7 +14,7 @@ from srpb_gym.angles import wrap_angle
 from srpb_gym.metrics import kernels
 from srpb_gym.metrics.ellipse import accept_fit, taubin_fit
 from srpb_gym.metrics.params import MetricParams, check_semantics, resolve_params
-from srpb_gym.metrics.record import EpisodeRecord, R
+from srpb_gym.metrics.record import EpisodeRecord, R, invalid_person_row, invalid_robot_row
 
 MOTION_METRICS: tuple[str, ...] = (
     "m_goal", "m_obs", "m_mef", "m_plin", "m_chc", "m_cef", "m_cre",
@@ -109,11 +109,13 @@ def evaluate_detailed(
     n = record.n_samples
     if n == 0:
         raise ValueError("the episode has no robot sample: nothing to evaluate")
+    for table, check, name in ((record.robot, invalid_robot_row, "robot"),
+                               (record.people, invalid_person_row, "people")):  # fmt: skip
+        found = check(table)
+        if found is not None:  # never a number from a value that cannot be right
+            raise ValueError(f"{name} row {found[0]}: {found[1]}")
     t = record.robot_col("t")
     dt = np.diff(t)
-    if np.any(dt < 0):
-        k = int(np.flatnonzero(dt < 0)[0])
-        raise ValueError(f"robot timestamps decrease between samples {k} and {k + 1}")
     metrics = motion_metrics(record, params, reference)
     ev = social_values(record, params, reference)
     for name, values, sample in (

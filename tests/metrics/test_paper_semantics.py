@@ -145,11 +145,11 @@ def test_psi_speed_and_rotation():
 
 
 def test_psi_covariance_symmetrised_in_paper():
-    p = person(0, 0, cov=(0.1, 0.2, 0.0, 0.1))
+    p = person(0, 0, cov=(0.1, 0.08, 0.0, 0.1))
     sxx, syy = 0.5 + 0.1, 1 / 3 + 0.1
-    c = 0.1  # (0.2 + 0.0) / 2
+    c = 0.04  # (0.08 + 0.0) / 2
     q_paper = (syy - 2 * c + sxx) / (sxx * syy - c * c)
-    q_ref = (syy - 0.2 + sxx) / (sxx * syy)  # [[xx, xy], [yx, yy]] as logged
+    q_ref = (syy - 0.08 + sxx) / (sxx * syy)  # [[xx, xy], [yx, yy]] as logged
     assert psi_of((1.0, 1.0), p) == pytest.approx(math.exp(-0.5 * q_paper))
     assert psi_of((1.0, 1.0), p, REF) == pytest.approx(math.exp(-0.5 * q_ref))
 
@@ -330,7 +330,7 @@ def test_no_people_and_no_samples():
 
 
 def test_decreasing_time_is_an_error():
-    with pytest.raises(ValueError, match="decrease between samples 1 and 2"):
+    with pytest.raises(ValueError, match="robot row 2: t = 0.5 is earlier than the previous"):
         evaluate(record_with(robot_rows([0, 1, 0.5])))
 
 
@@ -351,3 +351,13 @@ def test_override_changes_the_value():
     assert evaluate(rec)["m_obs"] == pytest.approx(50.0)
     assert evaluate(rec, safety_distance=0.8)["m_obs"] == pytest.approx(100.0)
     assert evaluate(rec, preset="srpb-code", safety_distance=0.4)["m_obs"] == 0.0
+
+
+def test_a_record_with_values_that_cannot_be_right_is_not_scored():
+    rows = robot_rows([0, 1, 2])
+    rows[1][1] = math.nan
+    with pytest.raises(ValueError, match="robot row 1: x is nan"):
+        evaluate(record_with(rows, {}))
+    bad = person(1.0, 0.0, cov=(-0.1, 0.0, 0.0, 0.1))
+    with pytest.raises(ValueError, match="people row 0: cov_xx"):
+        evaluate(record_with(robot_rows([0, 1]), {0: [(1, bad)]}))
