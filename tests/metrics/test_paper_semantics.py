@@ -330,7 +330,7 @@ def test_no_people_and_no_samples():
 
 
 def test_decreasing_time_is_an_error():
-    with pytest.raises(ValueError, match="robot row 2: t = 0.5 is earlier than the previous"):
+    with pytest.raises(ValueError, match=r"robot row 2: t = 0\.5 is earlier than the previous"):
         evaluate(record_with(robot_rows([0, 1, 0.5])))
 
 
