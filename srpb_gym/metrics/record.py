@@ -246,18 +246,18 @@ class EpisodeRecord:
     def latest(self) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
         """The last sample as small tables: robot (1, 12), people (k, 9), people ids (k,),
         group sizes (g,) and group members (sum of sizes,) as indices into its people."""
-        n = self.n_samples - 1
-        if n < 0:
+        samples, rows, groups, members, p0, g0, m0 = self.counts.tolist()
+        if samples == 0:
             raise ValueError("the record is empty")
-        p0, g0, m0 = (int(v) for v in self.counts[LAST_ROW:])
         if p0 < 0:  # built by from_arrays
-            p0, g0, m0 = self._sample_start(n)
+            p0, g0, m0 = self._sample_start(samples - 1)
+        robot, people, pint, gint, mem = self.tables
         return (
-            self.robot[n:],
-            self.people[p0:],
-            self._int_view(2, ROWS)[p0:, 1],
-            self._int_view(3, GROUPS)[g0:, 3],
-            self.group_members[m0:] - p0,
+            robot[samples - 1 : samples],
+            people[p0:rows],
+            pint[p0:rows, 1],
+            gint[g0:groups, 3],
+            mem[m0:members] - p0,
         )
 
     def _sample_start(self, n: int) -> tuple[int, int, int]:
