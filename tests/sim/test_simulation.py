@@ -155,3 +155,56 @@ def test_holonomic_base_moves_sideways():
     for _ in range(15):
         diff.step([[0.2, 0.2, 0.0]], 0.0)
     assert abs(diff.velocity[0, 1]) < 1e-3  # a differential drive ignores vy
+
+
+def expected_groups(persons, formation_of):
+    """Formation ids, sizes and member rows of the formations with two or more rows."""
+    forms = [formation_of[p] if p >= 0 else -1 for p in persons]
+    gids = [f for f in sorted(set(forms) - {-1}) if forms.count(f) >= 2]
+    members = [i for f in gids for i, g in enumerate(forms) if g == f]
+    return gids, [forms.count(f) for f in gids], members
+
+
+def test_each_sample_is_what_the_tracker_and_the_world_report(monkeypatch):
+    # small tables and track memory, so that every way of growing them is taken
+    monkeypatch.setattr(Simulation, "_reserve_records", lambda self: None)
+    sim = Simulation(detector=DetectorConfig.from_spec("lidar"))
+    lay = layout()
+    sim.reset(lay, np.random.default_rng(7))
+    state = sim.robots[0]
+    state.track_person = np.full(1, -1, dtype=np.int64)
+    followed: dict[int, int] = {}
+    for k in range(120):
+        sim.step([[0.3, 0.0, 0.3 * math.sin(k / 9)]], 0.001 * k)
+        tracks, det_index = state.tracker.tracks(), state.detector.arrays[5]
+        pose, v = sim.world.robot_pose[0], sim.velocity[0]
+        robot_row = [sim.t, pose[0], pose[1], math.remainder(pose[2], 2 * math.pi), *v,
+                     *state.goal, sim.obstacle_dist[0]]  # fmt: skip
+        for tid, d in zip(tracks.ids, tracks.detection):
+            if d >= 0:
+                followed[int(tid)] = int(det_index[d])
+        persons = [followed.get(int(tid), -1) for tid in tracks.ids]
+        gids, sizes, members = expected_groups(persons, sim.crowd.formation_of)
+        robot, people, ids, got_sizes, got_members = state.record.latest()
+        assert robot[0, :11] == pytest.approx(robot_row, abs=1e-12) and math.isnan(robot[0, 11])
+        assert state.record.robot[-2, 11] == 0.001 * k  # the decision's planning time
+        rows = np.column_stack([tracks.xy, tracks.yaw, tracks.covariance.reshape(-1, 4),
+                                tracks.velocity])  # fmt: skip
+        np.testing.assert_array_equal(people, rows)
+        np.testing.assert_array_equal(ids, tracks.ids)
+        assert got_sizes.tolist() == sizes and got_members.tolist() == members
+        assert state.record.group_id[len(state.record.group_id) - len(gids) :].tolist() == gids
+        robot, people, ids, got_sizes, got_members = state.gt_record.latest()
+        rows = np.zeros((sim.n_people, 9))
+        rows[:, :2], rows[:, 2], rows[:, 7:] = (
+            sim.world.people_xy,
+            sim.crowd.yaw,
+            sim.world.people_velocity,
+        )
+        np.testing.assert_array_equal(people, rows)
+        np.testing.assert_array_equal(ids, np.arange(sim.n_people))
+        assert got_sizes.tolist() == [2] and got_members.tolist() == [2, 3]
+    assert state.record.n_samples == state.gt_record.n_samples == 121
+    assert state.track_person.shape[0] > 1 and state.record.people.shape[0] > 256
+    state.record.validate()
+    state.gt_record.validate()
