@@ -6,7 +6,7 @@ imported only when drawing or writing.
   with the people's tracked positions faint and the F-formations' O-spaces outlined.
 * :func:`bar_chart`: one panel per metric, a bar per planner (median, interquartile range
   as the error bar), for one scenario.
-* :func:`write_video`: ``env.render()`` frames as MP4 through imageio's ffmpeg plugin when
+* :class:`VideoWriter`: ``env.render()`` frames as MP4 through imageio's ffmpeg plugin when
   it is installed (``imageio`` and ``imageio-ffmpeg``), else as an animated GIF (Pillow,
   one palette shared by every frame: the renderer draws few colours).
 """
@@ -27,7 +27,7 @@ from srpb_gym.metrics.record import EpisodeRecord
 from srpb_gym.render import ellipse_points
 
 PLOT_HINT = 'pip install "srpb-gym[plot]"'
-VIDEO_HINT = 'pip install "srpb-gym[render]" pillow (GIF) or imageio imageio-ffmpeg (MP4)'
+VIDEO_HINT = "pip install pillow (GIF), or pip install imageio imageio-ffmpeg (MP4)"
 MAX_OSPACES = 24  # O-space outlines drawn per episode (evenly spread over its samples)
 
 
@@ -197,13 +197,14 @@ def _bars(planners: dict[str, dict[str, Any]], names: list[str], key: str):
 
 # ---------------------------------------------------------------------------- videos
 def video_support() -> str | None:
-    """``None`` if videos can be written, else what is missing (one line)."""
-    missing = [] if find_spec("pygame") is not None else ["pygame"]
+    """``None`` if videos can be written, else what is missing (one line). The frames come
+    from the renderer (pygame-ce, a dependency of srpb-gym); writing them needs Pillow
+    (GIF) or imageio with imageio-ffmpeg (MP4)."""
+    if find_spec("pygame") is None:
+        return "videos need pygame-ce, a dependency of srpb-gym: pip install pygame-ce"
     if video_format() is None:
-        missing.append("Pillow or imageio-ffmpeg")
-    if not missing:
-        return None
-    return f"videos need {' and '.join(missing)}: {VIDEO_HINT}"
+        return f"videos need Pillow (GIF) or imageio and imageio-ffmpeg (MP4): {VIDEO_HINT}"
+    return None
 
 
 def video_format() -> str | None:
@@ -259,11 +260,3 @@ class VideoWriter:
         else:
             raise ValueError("no frame to write")
         return self.path
-
-
-def write_video(frames: Sequence[np.ndarray], stem: str, fps: int = 10) -> str:
-    """Write ``frames`` (H, W, 3 uint8) to ``stem`` + ``.mp4`` or ``.gif``; returns the path."""
-    writer = VideoWriter(stem, fps)
-    for frame in frames:
-        writer.add(frame)
-    return writer.close()
