@@ -25,6 +25,7 @@ from srpb_gym.scenarios.schema import (
     DEFAULT_ROBOT_RADIUS,
     MAX_FORMATION_MEMBERS,
     MAX_GROUP_SIZE,
+    MAX_ROBOTS,
     MIN_FORMATION_MEMBERS,
     FormationSpec,
     Place,
@@ -51,7 +52,7 @@ from srpb_gym.scenarios.yaml_io import read_file, read_yaml
 SUFFIXES = (".yaml", ".yml")
 TOP_KEYS = (
     "name", "description", "time_limit", "bounds", "enclose", "walls", "obstacles", "robot",
-    "people", "formations", "sensors",
+    "robots", "people", "formations", "sensors",
 )  # fmt: skip
 COMMON_PEOPLE_KEYS = (
     "count", "start_delay", "loop", "group_size", "preferred_speed", "radius", "relaxation_time",
@@ -157,7 +158,8 @@ def parse_scenario(
         bounds=bounds,
         walls=walls,
         obstacles=tuple(np.array(p, dtype=np.float64) for p in polygons),
-        robot=_robot(r, top["robot"]),
+        robot=_robot(r, top["robot"], "robot"),
+        robots=_robots(r, top.get("robots", [])),
         people=tuple(_people(r, top.get("people", []))),
         formations=tuple(_formations(r, top.get("formations", []))),
         sensors=_sensors(r, top.get("sensors", {})),
@@ -229,14 +231,20 @@ def _rectangle(r: Reader, value: Any, key: str) -> tuple[Point, ...]:
     return rectangle_corners((cx, cy), (w, h), yaw_lo)
 
 
-def _robot(r: Reader, value: Any) -> RobotSpec:
-    spec = r.mapping(
-        value, "robot", ("start", "goal", "goal_tolerance"), required=("start", "goal")
-    )
-    tolerance = r.number(spec.get("goal_tolerance", 0.2), "robot.goal_tolerance", positive=True)
+def _robot(r: Reader, value: Any, key: str) -> RobotSpec:
+    spec = r.mapping(value, key, ("start", "goal", "goal_tolerance"), required=("start", "goal"))
+    tolerance = r.number(spec.get("goal_tolerance", 0.2), f"{key}.goal_tolerance", positive=True)
     return RobotSpec(
-        _pose(r, spec["start"], "robot.start"), _pose(r, spec["goal"], "robot.goal"), tolerance
+        _pose(r, spec["start"], f"{key}.start"), _pose(r, spec["goal"], f"{key}.goal"), tolerance
     )
+
+
+def _robots(r: Reader, value: Any) -> tuple[RobotSpec, ...]:
+    """The multi-robot entries: each like ``robot``, robot i starting from entry i."""
+    items = _list(r, value, "robots")
+    if len(items) > MAX_ROBOTS:
+        raise r.error("robots", f"at most {MAX_ROBOTS} robots, got {len(items)}")
+    return tuple(_robot(r, item, f"robots[{i}]") for i, item in enumerate(items))
 
 
 def _pose(r: Reader, value: Any, key: str) -> PoseSpec:

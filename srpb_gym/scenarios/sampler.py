@@ -1,16 +1,19 @@
 """Drawing one :class:`~srpb_gym.sim.layout.EpisodeLayout` from a scenario.
 
-``sample(scenario, rng)`` draws, in this order and only from ``rng``:
+``sample(scenario, rng, n_robots)`` draws, in this order and only from ``rng``:
 
-1. the robot start (its circle of ``scenario.robot_radius`` ``GAP`` clear of walls, in a
-   component that reaches the goal place) and goal (likewise clear, in the start's
-   component, farther than ``goal_tolerance``), then their yaws;
+1. each robot's start (its circle of ``scenario.robot_radius`` ``GAP`` clear of walls, in
+   a component that reaches its goal place) and goal (likewise clear, in the start's
+   component, farther than ``goal_tolerance``), then their yaws. One robot starts from
+   the scenario's ``robot`` entry; ``n_robots >= 2`` robots from its first ``robots``
+   entries, robot i from entry i, each start and goal keeping ``ROBOTS_GAP`` from the
+   circles of the other robots' starts and goals drawn before it;
 2. each F-formation: centre, member count, circle radius, orientation and body radius;
    every member must keep ``GAP`` from walls and the formation's circle (member circle
-   plus a body radius) must not overlap the robot start or goal or an earlier formation;
+   plus a body radius) must not overlap a robot start or goal or an earlier formation;
 3. each ``people`` entry in file order: the number of units (people or walking groups),
    then every unit's placement and parameters. People keep ``GAP`` from walls, each other
-   and formation circles and ``ROBOT_GAP`` from the robot start.
+   and formation circles and ``ROBOT_GAP`` from every robot start.
 
 Random placements are retried up to ``MAX_TRIES`` times per unit; a route entry is redrawn
 as a whole up to ``ENTRY_TRIES`` times. Then a located :class:`~srpb_gym.errors.InputError`
@@ -25,14 +28,22 @@ from collections.abc import Callable
 import numpy as np
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.scenarios.schema import PLACEMENT_GAP, Range, Scenario, WalkerEntry, YawSpec
+from srpb_gym.scenarios.schema import (
+    PLACEMENT_GAP,
+    Range,
+    RobotSpec,
+    Scenario,
+    WalkerEntry,
+    YawSpec,
+)
 from srpb_gym.scenarios.space import FreeSpace, Point, free_space
 from srpb_gym.sim.layout import EpisodeLayout, FormationLayout, PersonLayout, RobotLayout
 
 MAX_TRIES = 200  # random placements per robot pose, formation or walking unit
 ENTRY_TRIES = 50  # redraws of a whole route entry
 GAP = PLACEMENT_GAP  # m, smallest gap between bodies, and from bodies to walls, at the start
-ROBOT_GAP = 0.3  # m, smallest gap between a person and the robot at the start
+ROBOT_GAP = 0.3  # m, smallest gap between a person and a robot at the start
+ROBOTS_GAP = 0.3  # m, smallest gap between two robots' start and goal circles
 GROUP_GAP = 0.2  # m, gap between the bodies of neighbours in a walking group
 
 
@@ -73,28 +84,32 @@ class _Context:
         return self.space.is_clear(x, y, r + GAP) and self.discs.free(x, y, r)
 
 
-def sample(scenario: Scenario, rng: np.random.Generator) -> EpisodeLayout:
+def sample(scenario: Scenario, rng: np.random.Generator, n_robots: int = 1) -> EpisodeLayout:
     """One episode layout drawn from ``scenario`` with ``rng`` (see the module docstring),
-    for a robot of ``scenario.robot_radius`` [m].
+    for ``n_robots`` robots of ``scenario.robot_radius`` [m].
 
-    ``layout.walls`` is the scenario's read-only wall array (shared, not copied). A scenario
-    that did not go through :func:`~srpb_gym.scenarios.validate.validate` for its robot
-    radius has its free space computed on every call (slow); load scenarios with
-    ``load_scenario``.
+    One robot starts from ``scenario.robot``; several from ``scenario.robots[:n_robots]``
+    (more than ``scenario.max_robots`` is an :class:`~srpb_gym.errors.InputError`, key
+    ``n_robots``). ``layout.goal_tolerance`` is the first robot's. ``layout.walls`` is the
+    scenario's read-only wall array (shared, not copied). A scenario that did not go
+    through :func:`~srpb_gym.scenarios.validate.validate` for its robot radius has its free
+    space computed on every call (slow); load scenarios with ``load_scenario``.
     """
+    specs = scenario.robot_specs(n_robots)
     ctx = _Context(scenario, free_space_of(scenario), rng)
-    robot = _robot(ctx)
-    ctx.discs.add(robot.start[0], robot.start[1], scenario.robot_radius + ROBOT_GAP - GAP)
-    formations = _formations(ctx, robot.goal[:2])
+    robots = _robots(ctx, specs)
+    for robot in robots:
+        ctx.discs.add(robot.start[0], robot.start[1], scenario.robot_radius + ROBOT_GAP - GAP)
+    formations = _formations(ctx, [robot.goal[:2] for robot in robots])
     for entry in scenario.people:
         (_route_entry if entry.is_route else _spawn_entry)(ctx, entry)
     return EpisodeLayout(
         walls=scenario.walls,
-        robots=(robot,),
+        robots=robots,
         people=tuple(ctx.people),
         formations=formations,
         time_limit=scenario.time_limit,
-        goal_tolerance=scenario.robot.goal_tolerance,
+        goal_tolerance=specs[0].goal_tolerance,
         bounds=scenario.bounds,
         metadata={"scenario": scenario.name},
     )
@@ -116,16 +131,38 @@ def _yaw(ctx: _Context, spec: YawSpec, towards: float) -> float:
     return towards if spec.towards_goal else float(wrap_angle(ctx.uniform(spec.range)))
 
 
-def _robot(ctx: _Context) -> RobotLayout:
-    spec, space = ctx.scenario.robot, ctx.space
-    start = _draw_robot_point(ctx, "start", lambda x, y: space.label_at(x, y) in space.robot_labels)
+def _robots(ctx: _Context, specs: tuple[RobotSpec, ...]) -> tuple[RobotLayout, ...]:
+    """The robots' starts and goals, robot i from ``specs[i]``, each clear of the others'."""
+    n, space, radius = len(specs), ctx.space, ctx.scenario.robot_radius
+    placed = _Discs()  # the start and goal circles of the robots drawn so far
+    out = []
+    for i, spec in enumerate(specs):
+        labels = space.robot_labels
+        if n > 1:
+            labels = space.labels_between(spec.start.place, spec.goal.place)
+        robot = _robot(ctx, spec, Scenario.robot_key(i, n), labels, placed)
+        for x, y, _ in (robot.start, robot.goal):
+            placed.add(x, y, radius)
+        out.append(robot)
+    return tuple(out)
+
+
+def _robot(
+    ctx: _Context, spec: RobotSpec, key: str, labels: frozenset[int], placed: _Discs
+) -> RobotLayout:
+    space = ctx.space
+
+    def reaching(x: float, y: float) -> bool:
+        return space.label_at(x, y) in labels
+
+    start = _draw_robot_point(ctx, spec, key, "start", reaching, placed)
     label = space.label_at(*start)
 
     def near_goal(x: float, y: float) -> bool:
         far = math.dist(start, (x, y)) > spec.goal_tolerance
         return far and space.label_at(x, y) == label
 
-    goal = _draw_robot_point(ctx, "goal", near_goal)
+    goal = _draw_robot_point(ctx, spec, key, "goal", near_goal, placed)
     towards = math.atan2(goal[1] - start[1], goal[0] - start[0])
     return RobotLayout(
         start=(start[0], start[1], _yaw(ctx, spec.start.yaw, towards)),
@@ -133,23 +170,31 @@ def _robot(ctx: _Context) -> RobotLayout:
     )
 
 
-def _draw_robot_point(ctx: _Context, name: str, accept: Callable[[float, float], bool]) -> Point:
-    place = getattr(ctx.scenario.robot, name).place
-    for _ in range(MAX_TRIES if not place.is_point else 1):
+def _draw_robot_point(
+    ctx: _Context, spec: RobotSpec, key: str, name: str,
+    accept: Callable[[float, float], bool], placed: _Discs,
+) -> Point:  # fmt: skip
+    """A start or goal point of ``spec`` clear of walls and of the ``placed`` robots."""
+    place, radius = getattr(spec, name).place, ctx.scenario.robot_radius
+    tries = MAX_TRIES if not place.is_point else 1
+    for _ in range(tries):
         x, y = place.draw(ctx.rng)
-        if ctx.space.is_clear(x, y, ctx.scenario.robot_radius + GAP) and accept(x, y):
+        clear = ctx.space.is_clear(x, y, radius + GAP) and placed.free(x, y, radius, ROBOTS_GAP)
+        if clear and accept(x, y):
             return (x, y)
+    others = placed.items and f", {ROBOTS_GAP:g} m clear of the other robots' starts and goals"
     raise ctx.scenario.error(
-        f"robot.{name}.position",
-        f"could not draw a {name} for a robot of radius {ctx.scenario.robot_radius:g} m clear "
-        f"of walls and reachable ({MAX_TRIES if not place.is_point else 1} tries)",
+        f"{key}.{name}.position",
+        f"could not draw a {name} for a robot of radius {radius:g} m clear of walls{others or ''} "
+        f"and reachable ({tries} tries)",
     )
 
 
-def _formations(ctx: _Context, goal: Point) -> tuple[FormationLayout, ...]:
+def _formations(ctx: _Context, goals: list[Point]) -> tuple[FormationLayout, ...]:
     out = []
     goal_disc = _Discs()
-    goal_disc.add(goal[0], goal[1], ctx.scenario.robot_radius)
+    for goal in goals:
+        goal_disc.add(goal[0], goal[1], ctx.scenario.robot_radius)
     for spec in ctx.scenario.formations:
         for _ in range(MAX_TRIES):
             cx, cy = spec.center.draw(ctx.rng)
@@ -167,8 +212,8 @@ def _formations(ctx: _Context, goal: Point) -> tuple[FormationLayout, ...]:
         else:
             raise ctx.scenario.error(
                 spec.key,
-                f"could not place this F-formation clear of walls, the robot start and goal and "
-                f"other formations in {MAX_TRIES} tries; enlarge its centre region",
+                f"could not place this F-formation clear of walls, the robot starts and goals "
+                f"and other formations in {MAX_TRIES} tries; enlarge its centre region",
             )
     return tuple(out)
 
@@ -250,7 +295,7 @@ def _spawn_entry(ctx: _Context, entry: WalkerEntry) -> None:
             raise ctx.scenario.error(
                 entry.key,
                 f"could not place {what} {number + 1} clear of walls, other people, F-formations "
-                f"and the robot start in {MAX_TRIES} tries; enlarge the spawn region or lower "
+                f"and the robot starts in {MAX_TRIES} tries; enlarge the spawn region or lower "
                 "count",
             )
 
@@ -266,7 +311,7 @@ def _route_entry(ctx: _Context, entry: WalkerEntry) -> None:
     raise ctx.scenario.error(
         entry.key,
         f"could not place the people of this route clear of walls, each other, F-formations "
-        f"and the robot start in {ENTRY_TRIES} tries; raise spacing or lower count",
+        f"and the robot starts in {ENTRY_TRIES} tries; raise spacing or lower count",
     )
 
 

@@ -29,6 +29,7 @@ PLACEMENT_GAP = 0.05  # m, free gap kept around every body placed at the start o
 MIN_FORMATION_MEMBERS = 2
 MAX_FORMATION_MEMBERS = 6
 MAX_GROUP_SIZE = 4  # walking groups of more than four people split up (Moussaid et al.)
+MAX_ROBOTS = 64  # entries of the multi-robot ``robots`` list
 
 Range = tuple[float, float]
 IntRange = tuple[int, int]
@@ -52,7 +53,7 @@ class PoseSpec:
 
 @dataclass(frozen=True)
 class RobotSpec:
-    """The robot's start and goal and how close to the goal counts as reached [m]."""
+    """A robot's start and goal and how close to the goal counts as reached [m]."""
 
     start: PoseSpec
     goal: PoseSpec
@@ -151,8 +152,10 @@ class Scenario:
     ``walls``: (S, 4) read-only array of wall segments x0, y0, x1, y1 [m], including the
     edges of the obstacles and, with ``enclose``, of the bounds. ``obstacles``: the solid
     polygons (each an (N, 2) array of vertices) whose edges are in ``walls``.
-    ``robot_radius``: the radius [m] of the robot the scenario is validated and sampled for
-    (the robot's clearance from walls, the reachability of its goal).
+    ``robot``: the start and goal of the single robot; ``robots``: the start and goal of
+    robot i when several robots share the world (empty: one robot only).
+    ``robot_radius``: the radius [m] of the robots the scenario is validated and sampled for
+    (their clearance from walls, the reachability of their goals).
     ``source`` and ``lines`` locate keys in the file for error messages;
     ``free_space`` (for ``robot_radius``) is precomputed by
     :func:`~srpb_gym.scenarios.validate.validate`.
@@ -167,6 +170,7 @@ class Scenario:
     obstacles: tuple[NDArray[np.float64], ...] = ()
     people: tuple[WalkerEntry, ...] = ()
     formations: tuple[FormationSpec, ...] = ()
+    robots: tuple[RobotSpec, ...] = ()
     sensors: SensorSpecs = field(default_factory=SensorSpecs)
     robot_radius: float = DEFAULT_ROBOT_RADIUS  # m
     source: str | None = None
@@ -176,6 +180,32 @@ class Scenario:
     def error(self, key: str, message: str) -> InputError:
         """An :class:`InputError` about ``key`` located in the scenario file."""
         return located_error(message, self.source, self.lines, key)
+
+    @property
+    def max_robots(self) -> int:
+        """How many robots the scenario places: its ``robots`` entries, else one."""
+        return max(len(self.robots), 1)
+
+    def robot_specs(self, n_robots: int = 1) -> tuple[RobotSpec, ...]:
+        """The entries ``n_robots`` robots start from: ``(robot,)`` for one robot, else the
+        first ``n_robots`` of ``robots``; an :class:`InputError` (key ``n_robots``) when the
+        scenario has fewer places."""
+        whole = isinstance(n_robots, numbers.Integral) and not isinstance(n_robots, bool)
+        if not whole or n_robots < 1:
+            raise InputError(f"expected a whole number >= 1, got {n_robots!r}", key="n_robots")
+        limit = self.max_robots
+        if n_robots > limit:
+            raise InputError(
+                f"scenario {self.name!r} has places for at most {limit} "
+                f"robot{'s' if limit > 1 else ''}, got {n_robots}",
+                key="n_robots",
+            )
+        return (self.robot,) if n_robots == 1 else self.robots[: int(n_robots)]
+
+    @staticmethod
+    def robot_key(index: int, n_robots: int) -> str:
+        """The dotted key of robot ``index``'s entry: ``robot`` alone, else ``robots[i]``."""
+        return "robot" if n_robots == 1 else f"robots[{index}]"
 
 
 def line_of(lines: Mapping[str, int], key: str) -> int | None:

@@ -292,6 +292,11 @@ class FreeSpace:
         found.discard(0)
         return found
 
+    def labels_between(self, start: Place, goal: Place) -> frozenset[int]:
+        """The robot components met by both places: a start drawn in one of them can reach
+        a goal drawn in the same one."""
+        return frozenset(self.labels_in(start) & self.labels_in(goal))
+
 
 def free_space(
     bounds: Bounds,
@@ -327,4 +332,4 @@ def free_space(
     labels, _ = ndimage.label(clearance > robot_radius)
     space = FreeSpace((xmin, ymin), resolution, clearance, labels.astype(np.int32), frozenset(),
                       segments, tuple(obstacles), bounds, robot_radius)  # fmt: skip
-    return replace(space, robot_labels=frozenset(space.labels_in(start) & space.labels_in(goal)))
+    return replace(space, robot_labels=space.labels_between(start, goal))

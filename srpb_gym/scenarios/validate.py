@@ -6,13 +6,14 @@ attached (a clearance field and the connected components of the space the robot 
 on a 5 cm grid), so that sampling needs no geometry set-up. What is checked, each failure
 raising a located :class:`~srpb_gym.errors.InputError`:
 
-* every place (robot start and goal, spawn and goal regions, F-formation centres) lies
-  inside ``bounds`` (all corners of a region);
-* the robot's circle (``robot_radius``, default 0.275 m) at the centre of its start and
-  goal places keeps ``PLACEMENT_GAP`` (5 cm) from walls and obstacles, and the goal is
-  reachable from the start: some grid cell of the start place and some grid cell of the
-  goal place are connected (4-neighbour) through cells whose centres are more than the
-  robot radius away from every wall;
+* every place (robot start and goal, those of each ``robots`` entry, spawn and goal
+  regions, F-formation centres) lies inside ``bounds`` (all corners of a region);
+* for ``robot`` and then each ``robots`` entry: the robot's circle (``robot_radius``,
+  default 0.275 m) at the centre of its start and goal places keeps ``PLACEMENT_GAP``
+  (5 cm) from walls and obstacles, and the goal is reachable from the start: some grid
+  cell of the start place and some grid cell of the goal place are connected
+  (4-neighbour) through cells whose centres are more than the robot radius away from
+  every wall;
 * an F-formation's members fit on its circle without overlapping at the smallest radius
   and the most members, and its whole circle plus a body radius around the centre of its
   place is clear of walls;
@@ -22,7 +23,8 @@ raising a located :class:`~srpb_gym.errors.InputError`:
   route (taken between region centres for spawn entries) crosses a wall;
 * a route is long enough for its people to queue along it;
 * sensor specs are accepted by the perception configs (when those modules are present);
-* a few trial layouts can be drawn (so crowded recipes fail at load time, not mid-run).
+* a few trial layouts can be drawn, for one robot and for all the ``robots`` entries (so
+  crowded recipes fail at load time, not mid-run).
 """
 
 from __future__ import annotations
@@ -40,6 +42,7 @@ from srpb_gym.scenarios.sampler import free_space_of, sample
 from srpb_gym.scenarios.schema import (
     PLACEMENT_GAP,
     FormationSpec,
+    RobotSpec,
     Scenario,
     WalkerEntry,
     checked_robot_radius,
@@ -72,7 +75,10 @@ def validate(
         raise scenario.error("time_limit", f"must be > 0, got {scenario.time_limit}")
     _check_places(scenario)
     space = free_space_of(scenario)
-    _check_robot(scenario, space)
+    _check_robot(scenario, space, "robot", scenario.robot, space.robot_labels)
+    for i, spec in enumerate(scenario.robots):
+        labels = space.labels_between(spec.start.place, spec.goal.place)
+        _check_robot(scenario, space, f"robots[{i}]", spec, labels)
     for formation in scenario.formations:
         _check_formation(scenario, space, formation)
     for entry in scenario.people:
@@ -81,12 +87,18 @@ def validate(
     prepared = replace(scenario, free_space=space)
     for seed in range(trials):
         sample(prepared, np.random.default_rng(seed))
+        if len(scenario.robots) > 1:
+            sample(prepared, np.random.default_rng(seed), n_robots=len(scenario.robots))
     return prepared
 
 
 def _places(scenario: Scenario) -> list[tuple[str, Place]]:
-    found = [("robot.start.position", scenario.robot.start.place),
-             ("robot.goal.position", scenario.robot.goal.place)]  # fmt: skip
+    found = []
+    keyed = [("robot", scenario.robot)]
+    keyed += [(f"robots[{i}]", spec) for i, spec in enumerate(scenario.robots)]
+    for key, spec in keyed:
+        found += [(f"{key}.start.position", spec.start.place),
+                  (f"{key}.goal.position", spec.goal.place)]  # fmt: skip
     for entry in scenario.people:
         if entry.spawn is not None and entry.goal is not None:
             found += [(f"{entry.key}.spawn", entry.spawn), (f"{entry.key}.goal", entry.goal)]
@@ -104,21 +116,25 @@ def _check_places(scenario: Scenario) -> None:
                 )
 
 
-def _check_robot(scenario: Scenario, space: FreeSpace) -> None:
-    robot, radius = scenario.robot, scenario.robot_radius
+def _check_robot(
+    scenario: Scenario, space: FreeSpace, key: str, robot: RobotSpec, labels: frozenset[int]
+) -> None:
+    """The ``robot`` entry or a ``robots`` entry (``key``) whose start and goal places meet
+    the free-space components ``labels``."""
+    radius = scenario.robot_radius
     for name, pose in (("start", robot.start), ("goal", robot.goal)):
         x, y = pose.place.center
         if not space.is_clear(x, y, radius + PLACEMENT_GAP):
             what = "the point" if pose.place.is_point else "the centre of the region"
             raise scenario.error(
-                f"robot.{name}.position",
+                f"{key}.{name}.position",
                 f"a robot of radius {radius:g} m at {what} ({x:g}, {y:g}) overlaps a wall or "
                 f"obstacle or comes within {PLACEMENT_GAP} m of one "
                 f"(clearance {space.exact_clearance(x, y):.3f} m)",
             )
-    if not space.robot_labels:
+    if not labels:
         raise scenario.error(
-            "robot.goal.position",
+            f"{key}.goal.position",
             f"the goal is not reachable from the start for a robot of radius {radius:g} m "
             f"(checked on a {space.resolution:g} m occupancy grid)",
         )
@@ -126,7 +142,7 @@ def _check_robot(scenario: Scenario, space: FreeSpace) -> None:
         gap = math.dist(robot.start.place.center, robot.goal.place.center)
         if gap <= robot.goal_tolerance:
             raise scenario.error(
-                "robot.goal.position",
+                f"{key}.goal.position",
                 f"the goal is within goal_tolerance of the start ({gap:.3f} m)",
             )
 
