@@ -3,18 +3,21 @@
 Usage::
 
     srpb-gym metrics ROBOT_LOG [PEOPLE_LOG [GROUPS_LOG]] [--semantics S] [--preset P]
-                     [--param NAME=VALUE ...] [--json]
-    srpb-gym eval [--env ID ...] [--planner NAME ...] [--planner-config FILE]
-                  [--planner-param NAME.FIELD=VALUE ...] [--policy PATH ...] [--episodes N]
-                  [--seed S] [--out DIR] [--workers N] [--video [K]] [--semantics S]
-                  [--preset P]
-    srpb-gym compare DIR [DIR ...] [--out DIR]
+                     [--param NAME=VALUE ...] [--json] [--no-people] [--no-groups]
+    srpb-gym eval [--env ID|FILE ...] [--planner NAME ...] [--planner-config FILE]
+                  [--planner-param NAME.FIELD=VALUE ...] [--policy PATH ...]
+                  [--policy-algo ALGO] [--vecnormalize FILE|none] [--episodes N] [--seed S]
+                  [--out DIR] [--resume] [--workers N] [--warmup STEPS] [--video [K]]
+                  [--semantics S] [--preset P]
+    srpb-gym compare DIR [DIR ...] [--out DIR] [--separate]
     srpb-gym --version
 
 Every subcommand is registered by one ``add_<name>_command(subparsers)`` function listed in
 :data:`COMMANDS`; it sets ``func`` (taking the parsed arguments, returning the exit status).
 Exit status: 0 on success, 2 on bad input (one line ``srpb-gym: error: ...`` on stderr),
-130 when an evaluation is interrupted (Ctrl-C; what finished is kept).
+130 when an evaluation is interrupted (Ctrl-C; what finished is kept, ``--resume`` goes on).
+Every figure printed is right or refused: a metric that cannot be computed (the social
+metrics of a robot log without its people log) is printed as ``n/a`` (``null`` in JSON).
 """
 
 from __future__ import annotations
@@ -77,6 +80,18 @@ def add_metrics_command(subparsers: Any) -> None:
         action="store_true",
         help="evaluate the bundled example episode (a robot crossing a 5-person F-formation)",
     )
+    p.add_argument(
+        "--no-people",
+        action="store_true",
+        help="the run truly had nobody around: score the social metrics of a robot log "
+        "without a people log (else they are not computed: n/a)",
+    )
+    p.add_argument(
+        "--no-groups",
+        action="store_true",
+        help="the run truly had no F-formation: score m_fsi without a groups log "
+        "(else it is not computed: n/a)",
+    )
     p.set_defaults(func=run_metrics)
 
 
@@ -88,23 +103,31 @@ def example_log() -> str:
 
 
 def run_metrics(args: argparse.Namespace) -> int:
-    """Evaluate the episode named by ``args`` and print its metrics."""
+    """Evaluate the episode named by ``args`` and print its metrics (``n/a``/``null`` for
+    the metrics its logs cannot give)."""
     from srpb_gym.metrics import METRIC_DESCRIPTIONS, METRIC_UNITS, evaluate
-    from srpb_gym.metrics.io import load_episode
 
     overrides = parse_params(args.param, args.preset)
     if args.example == (args.robot_log is not None):
         raise InputError("give either ROBOT_LOG or --example", key="metrics")
     robot_log = example_log() if args.example else args.robot_log
-    record = load_episode(robot_log, args.people_log, args.groups_log)
+    record, not_computed, notes = load_metrics_episode(
+        robot_log, args.people_log, args.groups_log, args.no_people, args.no_groups
+    )
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            values = evaluate(record, args.semantics, args.preset, **overrides)
+            values: dict[str, float | None] = dict(
+                evaluate(record, args.semantics, args.preset, **overrides)
+            )
         except InputError:
             raise
         except ValueError as exc:  # an episode that cannot be evaluated (no sample, ...)
             raise InputError(str(exc), robot_log) from None
+    for name in not_computed:
+        values[name] = None
+    for note in notes:
+        print(f"{PROG}: note: {note}", file=sys.stderr)
     for warning in caught:
         print(f"{PROG}: warning: {warning.message}", file=sys.stderr)
     if args.json:
@@ -112,6 +135,67 @@ def run_metrics(args: argparse.Namespace) -> int:
     else:
         print(format_table(values, METRIC_UNITS, METRIC_DESCRIPTIONS))
     return 0
+
+
+def social_metrics(bases: Sequence[str]) -> list[str]:
+    """The metric names of the social metrics ``bases`` (``m_psi``, ...) with their
+    ``_min``, ``_max`` and ``_viol`` variants."""
+    from srpb_gym.metrics import METRIC_NAMES
+
+    return [m for m in METRIC_NAMES if any(m == b or m.startswith(f"{b}_") for b in bases)]
+
+
+def load_metrics_episode(
+    robot_log: str,
+    people_log: str | None = None,
+    groups_log: str | None = None,
+    no_people: bool = False,
+    no_groups: bool = False,
+) -> tuple[Any, list[str], list[str]]:
+    """The episode of ``srpb-gym metrics``, the metrics its logs cannot give and one note
+    per missing log.
+
+    An ``.npz`` record holds its people and groups. For native logs the people and groups
+    logs are the ones given or, when none is given, the ``*_people.txt`` /
+    ``*_groups.txt`` siblings of a ``*_robot.txt`` log. Without a people log the social
+    metrics (m_psi, m_fsi, m_dir) are not computed, without a groups log m_fsi is not,
+    unless ``no_people`` / ``no_groups`` say that the run truly had nobody / no group.
+    """
+    from pathlib import Path
+
+    from srpb_gym.metrics import io_native
+    from srpb_gym.metrics.io import load_episode
+
+    if Path(robot_log).suffix.lower() == ".npz":
+        if no_people or no_groups:
+            flag = "--no-people" if no_people else "--no-groups"
+            raise InputError("an .npz record holds its people and groups itself", robot_log,
+                             key=flag)  # fmt: skip
+        return load_episode(robot_log, people_log, groups_log), [], []
+    people: str | os.PathLike[str] | None = people_log
+    groups: str | os.PathLike[str] | None = groups_log
+    if people is None and groups is None:
+        people, groups = io_native.sibling_logs(robot_log)
+    for flag, given, log in (("--no-people", no_people, people), ("--no-groups", no_groups,
+                                                                   groups)):  # fmt: skip
+        if given and log is not None:
+            raise InputError(f"the run has a log of them: {os.fspath(log)}", key=flag)
+    no_groups = no_groups or no_people
+    missing, notes = [], []
+    sibling = "" if people_log is not None or groups_log is not None else " given or found"
+    if people is None and not no_people:
+        missing += social_metrics(("m_psi", "m_fsi", "m_dir"))
+        notes.append(f"no people log{sibling} for {robot_log}: the social metrics m_psi, "
+                     f"m_fsi, m_dir are not computed (--no-people: the run had nobody "
+                     f"around)")  # fmt: skip
+    elif groups is None and not no_groups:
+        missing += social_metrics(("m_fsi",))
+        notes.append(f"no groups log{sibling} for {robot_log}: m_fsi is not computed "
+                     f"(--no-groups: the run had no F-formation)")  # fmt: skip
+    # False: the reader's "no such log" (it refuses None, so that no log passes unsaid)
+    record = io_native.read_native(robot_log, False if people is None else people,
+                                   False if groups is None else groups)  # fmt: skip
+    return record, missing, notes
 
 
 def parse_params(items: Sequence[str], preset: str) -> dict[str, float]:
@@ -137,21 +221,28 @@ def parse_params(items: Sequence[str], preset: str) -> dict[str, float]:
 
 
 def format_table(
-    values: dict[str, float], units: dict[str, str], descriptions: dict[str, str] | None = None
+    values: dict[str, float | None],
+    units: dict[str, str],
+    descriptions: dict[str, str] | None = None,
 ) -> str:
-    """An aligned table: metric, value (6 significant digits), unit, and what it measures."""
+    """An aligned table: metric, value (6 significant digits; ``n/a`` for ``None``, not
+    computed), unit, and what it measures."""
     descriptions = descriptions or {}
     rows = [("metric", "value", "unit", "")]
     rows += [
-        (name, f"{float(v):.6g}", units.get(name, ""), descriptions.get(name, ""))
+        (name, "n/a" if v is None else f"{float(v):.6g}", units.get(name, ""),
+         descriptions.get(name, ""))
         for name, v in values.items()
-    ]
+    ]  # fmt: skip
     w = [max(len(r[i]) for r in rows) for i in range(3)]
     return "\n".join(f"{n:<{w[0]}}  {v:>{w[1]}}  {u:<{w[2]}}  {d}".rstrip() for n, v, u, d in rows)
 
 
-def _json_number(value: float) -> float | str:
-    """A float for JSON; non-finite values as the strings NaN, Infinity, -Infinity."""
+def _json_number(value: float | None) -> float | str | None:
+    """A float for JSON; non-finite values as the strings NaN, Infinity, -Infinity; ``None``
+    (not computed) as ``null``."""
+    if value is None:
+        return None
     value = float(value)
     if math.isnan(value):
         return "NaN"
@@ -163,6 +254,7 @@ def _json_number(value: float) -> float | str:
 # ---------------------------------------------------------------------------- eval
 def add_eval_command(subparsers: Any) -> None:
     """Register ``eval``: run planners and policies on scenarios, write the results."""
+    from srpb_gym.evaluation.spec import DEFAULT_WARMUP
     from srpb_gym.metrics.params import PRESETS, SEMANTICS
     from srpb_gym.registration import SCENARIO_IDS
 
@@ -176,10 +268,12 @@ def add_eval_command(subparsers: Any) -> None:
             "the configuration into --out. Without --env/--planner/--policy: "
             "SRPB-Corridor-v0 with every registered planner, 5 episodes."
         ),
-        epilog=f"environment ids: {', '.join(SCENARIO_IDS)}",
+        epilog=f"environment ids: {', '.join(SCENARIO_IDS)}; or a scenario file "
+        "(envs/my_lab.yaml), run as SRPB-Custom-v0 and labelled by its scenario name",
     )
     many = {"action": "extend", "nargs": "+"}
-    p.add_argument("--env", metavar="ID", **many, help="environment id(s)")
+    p.add_argument("--env", metavar="ID|FILE", **many,
+                   help="environment id(s) or scenario file(s) (.yaml)")  # fmt: skip
     p.add_argument("--planner", metavar="NAME", **many, help="registered planner(s)")
     p.add_argument("--planner-config", metavar="FILE",
                    help="YAML file of planner settings: {NAME: {FIELD: VALUE}}, nested "
@@ -190,13 +284,27 @@ def add_eval_command(subparsers: Any) -> None:
                         "--planner-config)")  # fmt: skip
     p.add_argument("--policy", metavar="PATH", **many, default=[],
                    help="stable-baselines3 model .zip file(s), named after the file")  # fmt: skip
-    p.add_argument("--policy-algo", default="PPO", metavar="ALGO",
-                   help="algorithm of the --policy files (default: PPO)")  # fmt: skip
+    p.add_argument("--policy-algo", default=None, metavar="ALGO",
+                   help="force the algorithm of the --policy files: PPO, A2C, SAC, TD3, DDPG "
+                        "or DQN (default: read from each file)")  # fmt: skip
+    p.add_argument("--vecnormalize", default="auto", metavar="FILE",
+                   help="observation-normalisation statistics of the --policy files, or "
+                        "'none' for raw observations (default: vecnormalize.pkl where "
+                        "srpb-gym train or the RL Zoo put it, see docs/evaluation.md)")  # fmt: skip
     p.add_argument("--episodes", type=int, default=5, metavar="N", help="per pair (default: 5)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="first seed (default: 0)")
-    p.add_argument("--out", metavar="DIR", help="output folder (default: runs/eval-<time>)")
+    p.add_argument("--out", metavar="DIR",
+                   help="output folder, new or empty (default: runs/eval-<time>)")  # fmt: skip
+    p.add_argument("--resume", action="store_true",
+                   help="continue the interrupted run in --out (same options; finished "
+                        "episodes are kept, the others run)")  # fmt: skip
     p.add_argument("--workers", type=int, default=1, metavar="N",
-                   help="worker processes (default: 1)")  # fmt: skip
+                   help="worker processes (default: 1; at most the CPU count and the "
+                        "number of episodes)")  # fmt: skip
+    p.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, metavar="STEPS",
+                   help="untimed control steps of each planner before its first timed "
+                        f"episode, in each process (default: {DEFAULT_WARMUP}; 0: none)",
+                   )  # fmt: skip
     p.add_argument("--video", type=int, nargs="?", const=1, default=0, metavar="K",
                    help="film the first K episodes of each pair (default K: 1)")  # fmt: skip
     p.add_argument("--semantics", choices=SEMANTICS, default="paper",
@@ -204,6 +312,10 @@ def add_eval_command(subparsers: Any) -> None:
     p.add_argument("--preset", choices=tuple(PRESETS), default="paper",
                    help="metric parameter preset (default: paper)")  # fmt: skip
     p.set_defaults(func=run_eval)
+
+
+def _stderr(line: str) -> None:
+    print(f"{PROG}: {line}", file=sys.stderr)
 
 
 def run_eval(args: argparse.Namespace) -> int:
@@ -217,15 +329,17 @@ def run_eval(args: argparse.Namespace) -> int:
         missing = video_support()
         if missing:
             raise InputError(missing, key="--video")
+    if args.resume and not args.out:
+        raise InputError("give the folder of the run to continue with --out", key="--resume")
     config = resolve_config(
         args.env, args.planner, args.policy, policy_algo=args.policy_algo,
-        episodes=args.episodes, seed=args.seed, out=args.out, workers=args.workers,
-        video=args.video, semantics=args.semantics, preset=args.preset,
+        vecnormalize=args.vecnormalize, episodes=args.episodes, seed=args.seed, out=args.out,
+        workers=args.workers, video=args.video, semantics=args.semantics, preset=args.preset,
         planner_settings=planner_settings(args.planner_config, args.planner_param),
-        argv=getattr(args, "argv", ()),
+        argv=getattr(args, "argv", ()), warmup=args.warmup, resume=args.resume, log=_stderr,
     )  # fmt: skip
     try:
-        outcome = run_evaluation(config)
+        outcome = run_evaluation(config, log=_stderr)
     except KeyboardInterrupt:  # outside the episodes (set-up, figures)
         print(f"{PROG}: interrupted; partial results in {config.out}", file=sys.stderr)
         return 130
@@ -233,7 +347,8 @@ def run_eval(args: argparse.Namespace) -> int:
         print(outcome.text)
     if outcome.interrupted:
         print(f"{PROG}: interrupted: {len(outcome.results)} of {outcome.planned} episodes "
-              f"finished; results so far in {config.out}", file=sys.stderr)  # fmt: skip
+              f"finished; results so far in {config.out} (--resume continues)",
+              file=sys.stderr)  # fmt: skip
         return 130
     print(f"\nresults in {config.out}")
     return 0
@@ -247,11 +362,18 @@ def add_compare_command(subparsers: Any) -> None:
         help="compare earlier evaluation runs",
         description=(
             "Merge the episodes.csv of earlier `srpb-gym eval` runs into one table per "
-            "scenario. A planner present in several runs is labelled PLANNER@RUN_FOLDER."
+            "scenario. A planner present in several runs is labelled PLANNER@RUN_FOLDER. "
+            "Runs made with different --semantics, --preset or metric parameters (read from "
+            "each run's config.json) are refused unless --separate keeps them apart. A cell "
+            "over fewer episodes than the 'episodes' row (undefined values left out) says "
+            "so: (n=18/20)."
         ),
     )
     p.add_argument("dirs", metavar="DIR", nargs="+", help="evaluation folder (or episodes.csv)")
     p.add_argument("--out", metavar="DIR", help="also write the merged results and tables here")
+    p.add_argument("--separate", action="store_true",
+                   help="keep runs made with different settings apart, as columns "
+                        "PLANNER@RUN, instead of refusing them")  # fmt: skip
     p.set_defaults(func=run_compare)
 
 
@@ -259,7 +381,7 @@ def run_compare(args: argparse.Namespace) -> int:
     """Print (and with ``--out`` write) the merged comparison tables."""
     from srpb_gym.evaluation import compare_runs
 
-    text, _ = compare_runs(args.dirs, args.out)
+    text, _ = compare_runs(args.dirs, args.out, separate=args.separate)
     print(text)
     return 0
 

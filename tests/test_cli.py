@@ -126,9 +126,56 @@ def test_explicit_logs_and_npz_input_agree(capsys, tmp_path):
     save_record(load_episode(log / "log_robot.txt"), tmp_path / "e.npz")
     from_npz = _run(capsys, "metrics", tmp_path / "e.npz", "--json")[1]
     assert json.loads(explicit) == json.loads(from_npz)
-    alone = shutil.copy(log / "log_robot.txt", tmp_path / "copy.txt")  # no siblings found
-    robot_only = json.loads(_run(capsys, "metrics", alone, "--json")[1])
-    assert robot_only["m_psi"] == 0 and json.loads(explicit)["m_psi"] > 0
+
+
+SOCIAL = [m for m in METRIC_NAMES if m.startswith(("m_psi", "m_fsi", "m_dir"))]
+FSI = [m for m in METRIC_NAMES if m.startswith("m_fsi")]
+
+
+def test_robot_log_without_people_log_leaves_social_metrics_not_computed(capsys, tmp_path):
+    log = _robot_log().parent
+    full = json.loads(_run(capsys, "metrics", log / "log_robot.txt", "--json")[1])
+    alone = shutil.copy(log / "log_robot.txt", tmp_path / "copy_robot.txt")  # no siblings
+    code, out, err = _run(capsys, "metrics", alone, "--json")
+    assert code == 0
+    got = json.loads(out)
+    assert [m for m in METRIC_NAMES if got[m] is None] == SOCIAL  # null, never 0
+    assert all(got[m] == full[m] for m in METRIC_NAMES if m not in SOCIAL)
+    assert err == (f"srpb-gym: note: no people log given or found for {alone}: the social "
+                   "metrics m_psi, m_fsi, m_dir are not computed (--no-people: the run had "
+                   "nobody around)\n")  # fmt: skip
+    code, out, _ = _run(capsys, "metrics", alone)
+    rows = {line.split()[0]: line.split()[1] for line in out.splitlines()[1:]}
+    assert code == 0 and all(rows[m] == "n/a" for m in SOCIAL)
+    assert all(rows[m] != "n/a" for m in METRIC_NAMES if m not in SOCIAL)
+
+
+def test_no_people_flag_scores_an_empty_scene(capsys, tmp_path):
+    alone = shutil.copy(_robot_log(), tmp_path / "copy_robot.txt")
+    code, out, err = _run(capsys, "metrics", alone, "--json", "--no-people")
+    assert code == 0 and err == ""
+    got = json.loads(out)
+    assert all(got[m] == 0 for m in ("m_psi", "m_fsi", "m_dir"))
+    code, _, err = _run(capsys, "metrics", _robot_log(), "--no-people")
+    assert code == 2
+    assert _single_error_line(err) == (
+        f"srpb-gym: error: --no-people: the run has a log of them: "
+        f"{_robot_log().parent / 'log_people.txt'}"
+    )
+
+
+def test_people_log_without_groups_log_leaves_fsi_not_computed(capsys, tmp_path):
+    log = _robot_log().parent
+    full = json.loads(_run(capsys, "metrics", log / "log_robot.txt", "--json")[1])
+    code, out, err = _run(capsys, "metrics", log / "log_robot.txt", log / "log_people.txt",
+                          "--json")  # fmt: skip
+    got = json.loads(out)
+    assert code == 0 and [m for m in METRIC_NAMES if got[m] is None] == FSI
+    assert all(got[m] == full[m] for m in METRIC_NAMES if m not in FSI)
+    assert "no groups log for" in err and "m_fsi is not computed" in err
+    code, out, _ = _run(capsys, "metrics", log / "log_robot.txt", log / "log_people.txt",
+                        "--json", "--no-groups")  # fmt: skip
+    assert code == 0 and json.loads(out)["m_fsi"] == 0
 
 
 def test_version(capsys):

@@ -105,7 +105,7 @@ def test_tables_in_three_formats(run, capsys):
     assert "m\\_psi & \\% &" in tex and tex.count("\\\\") == 1 + 4 + len(METRIC_NAMES)
     with open(run / f"table_{ENV}.csv", newline="") as f:
         table = list(csv.reader(f))
-    assert table[0] == ["metric", "unit", "go-to-goal median", "go-to-goal q1", "go-to-goal q3"]
+    assert table[0] == ["metric", "unit", *(f"go-to-goal {k}" for k in ("median", "q1", "q3", "n"))]
     assert [r[0] for r in table[5:]] == list(METRIC_NAMES)
     assert cell({"median": 12.3, "q1": 10.1, "q3": 14.0}) == "12.3 [10.1-14.0]"
 
@@ -174,7 +174,7 @@ def test_run_episode_options_and_timing():
         (["--env", "SRPB-Nowhere-v0"], "--env: unknown environment id 'SRPB-Nowhere-v0'"),
         (["--planner", "teleport"], "--planner: unknown planner 'teleport'; choose one of"),
         (["--policy", "missing.zip"], "missing.zip: --policy: no such file"),
-        (["--policy", "garbage.zip"], "garbage.zip: --policy: not a stable-baselines3 PPO model"),
+        (["--policy", "garbage.zip"], "garbage.zip: --policy: not a stable-baselines3 model (not"),
         (["--out", "a_file.txt"], "--out: a_file.txt is an existing file"),
         (["--episodes", "0"], "--episodes: must be at least 1, got 0"),
         (["--planner-param", "go-to-goal.k_turnn=3"], "planner.go-to-goal.k_turnn: unknown key"),
@@ -201,7 +201,8 @@ def test_bad_arguments_exit_2(args, expected, tmp_path, monkeypatch, capsys):
 
 # ---------------------------------------------------------------------------- interrupt
 class _Interrupting(GoToGoal):
-    """Finishes its first episode, then Ctrl-C arrives during the second."""
+    """Finishes its first episode, then Ctrl-C arrives during the second (the first reset
+    is the warm-up's, which stops before t = 1 s)."""
 
     name = "interrupting"
     episodes = 0
@@ -210,7 +211,7 @@ class _Interrupting(GoToGoal):
         type(self).episodes += 1
 
     def act(self, observation, knowledge):
-        if type(self).episodes > 1 and knowledge.t > 1.0:
+        if type(self).episodes > 2 and knowledge.t > 1.0:
             raise KeyboardInterrupt
         return super().act(observation, knowledge)
 
@@ -222,7 +223,10 @@ def test_interrupt_keeps_finished_episodes(tmp_path, monkeypatch, capsys):
                  "--out", str(out)])  # fmt: skip
     assert code == 130
     err = capsys.readouterr().err.strip().splitlines()[-1]
-    assert err == f"srpb-gym: interrupted: 1 of 3 episodes finished; results so far in {out}"
+    assert err == (
+        f"srpb-gym: interrupted: 1 of 3 episodes finished; results so far in {out} "
+        "(--resume continues)"
+    )
     assert [r["seed"] for r in _rows(out)] == ["0"]
     folder = out / "episodes" / ENV / "interrupting"
     assert sorted(p.name for p in folder.iterdir() if "seed0" not in p.name) == []

@@ -4,7 +4,9 @@ An evaluation writes into its output folder ``config.json`` (the resolved config
 ``command.txt``, ``versions.json``, ``episodes.csv`` (a row per episode, written as each one
 finishes), ``episodes/<env id>/<planner>/`` (SRPB native logs and ``.npz`` records),
 ``summary.json``, ``table_<env>.md|.csv|.tex``, ``trajectories_<env>_<planner>.png``,
-``bars_<env>.png`` and, when asked, ``videos/``.
+``bars_<env>.png`` and, when asked, ``videos/``. With ``config.resume`` it continues the
+interrupted run in that folder (:mod:`srpb_gym.evaluation.outdir`): the finished episodes
+are kept, the others run, and the summary, tables and figures cover them all.
 """
 
 from __future__ import annotations
@@ -21,9 +23,8 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any
 
-from srpb_gym.errors import InputError
-from srpb_gym.evaluation import stats
-from srpb_gym.evaluation.runner import EpisodeResult, run_tasks, tasks_of
+from srpb_gym.evaluation import outdir, stats
+from srpb_gym.evaluation.runner import EpisodeResult, remove_unfinished, run_tasks, tasks_of
 from srpb_gym.evaluation.spec import EvalConfig, jsonable
 
 VERSIONED: tuple[tuple[str, str], ...] = (
@@ -56,21 +57,33 @@ def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None)
 
     Ctrl-C stops the run: the finished episodes stay on disk with their CSV rows, the
     summary and tables of what finished are written (figures are not) and the outcome says
-    ``interrupted``. ``log`` receives one-line warnings (a missing plotting library).
+    ``interrupted``. With ``config.resume`` the finished episodes of the run in
+    ``config.out`` are kept and only the others run. ``log`` receives one-line warnings
+    (a missing plotting library, a dropped unfinished CSV line).
     """
-    log = log or (lambda line: print(line, file=sys.stderr))
+    log = log or (lambda line: print(f"srpb-gym: {line}", file=sys.stderr))
     out = config.out
-    files, resolved = write_run_info(config)
-    results: list[EpisodeResult] = []
-    writer = stats.EpisodeWriter(os.path.join(out, "episodes.csv"))
-    tasks = tasks_of(config)
+    if config.resume:
+        resolved = resolved_config(config)
+        outdir.check_resumable(config, resolved, versions())
+        done, tasks = outdir.finished_episodes(config, log)
+        remove_unfinished(config, tasks)  # files a killed run may have left
+        files = [os.path.join(out, name) for name in outdir.RUN_FILES]
+        with open(files[1], "a", encoding="utf-8") as f:
+            f.write(shlex.join(["srpb-gym", *config.argv]) + "\n")
+    else:
+        files, resolved = write_run_info(config)
+        done, tasks = [], tasks_of(config)
+    results: list[EpisodeResult] = list(done)
+    writer = stats.EpisodeWriter(os.path.join(out, "episodes.csv"), done)
     bar = _progress(len(tasks))
     try:
         interrupted = run_tasks(config, tasks, lambda r: _record(r, results, writer, bar))
     finally:
         writer.close()
         bar.close()
-    order = {(t.env, config.planners[t.planner].name, t.seed): i for i, t in enumerate(tasks)}
+    order = {(t.env, config.planners[t.planner].name, t.seed): i
+             for i, t in enumerate(tasks_of(config))}  # fmt: skip
     results.sort(key=lambda r: order[(r.env, r.planner, r.seed)])
     stats.write_episodes(writer.path, results)
     outcome = RunOutcome(config, results, interrupted, files=[*files, writer.path])
@@ -140,12 +153,14 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
 
     envs = []
     for env_id in config.envs:
-        env = gym.make(env_id, **config.env_kwargs(env_id))
-        base = env.unwrapped
-        envs.append({"id": env_id, "scenario": base.scenario.name,
-                     "kwargs": {**gym.spec(env_id).kwargs, **config.env_kwargs(env_id)},
-                     "max_episode_steps": gym.spec(env_id).max_episode_steps,
-                     "metric_params": base.params.as_dict()})  # fmt: skip
+        env = config.make_env(env_id)
+        base, spec = env.unwrapped, gym.spec(config.gym_id(env_id))
+        entry = {"id": env_id, "scenario": base.scenario.name}
+        if config.scenario_file(env_id) is not None:
+            entry |= {"gym_id": spec.id, "scenario_file": config.scenario_file(env_id)}
+        envs.append(entry | {"kwargs": {**spec.kwargs, **config.env_kwargs(env_id)},
+                             "max_episode_steps": spec.max_episode_steps,
+                             "metric_params": base.params.as_dict()})  # fmt: skip
         env.close()
     return {
         "envs": envs,
@@ -156,10 +171,12 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
         "semantics": config.semantics,
         "preset": config.preset,
         "workers": config.workers,
+        "warmup": {"steps": config.warmup, "seed": config.warmup_seed},
         "video": config.video,
         "out": config.out,
         "record_dirs": "episodes/<env id>/<planner>/",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "notes": list(config.notes),
     }
 
 
@@ -187,7 +204,7 @@ def draw_figures(
     try:
         figures.pyplot()
     except ImportError as exc:
-        log(f"srpb-gym: warning: {exc}; no figures written")
+        log(f"warning: {exc}; no figures written")
         return []
     envs = {e["id"]: e for e in resolved["envs"]}
     paths = []
@@ -211,68 +228,8 @@ def _trajectories(config: EvalConfig, env: dict, rows: list, title: str, path: s
     from srpb_gym.scenarios import load_scenario
 
     records = [load_record(os.path.join(config.out, r.record)) for r in rows]
-    walls = load_scenario(env["scenario"]).walls
+    walls = load_scenario(env.get("scenario_file") or env["scenario"]).walls
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SRPBMetricWarning)
         figures.trajectory_plot(records, walls, title, path, MetricParams(**env["metric_params"]),
                               config.semantics)  # fmt: skip
-
-
-def compare_runs(dirs: Sequence[str], out: str | None = None) -> tuple[str, list[str]]:
-    """Merge the ``episodes.csv`` of earlier runs into one table per scenario. A planner
-    found in more than one run is labelled ``<planner>@<run folder>``. With ``out``, also
-    writes the merged ``episodes.csv``, ``summary.json``, the tables and bar charts there.
-    Returns the printed text and the files written."""
-    runs = []
-    for d in dirs:
-        path = os.path.join(d, "episodes.csv") if os.path.isdir(d) else d
-        if not os.path.isfile(path):
-            raise InputError("no episodes.csv here (not an evaluation folder)", d)
-        runs.append((os.path.basename(os.path.abspath(os.path.dirname(path) or ".")),
-                     stats.read_episodes(path)))  # fmt: skip
-    labels = [label for label, _ in runs]
-    runs = [(label if labels.count(label) == 1 else f"{label}#{i + 1}", rows)
-            for i, (label, rows) in enumerate(runs)]  # fmt: skip
-    merged = _label_duplicates(runs)
-    if not merged:
-        raise InputError("the runs hold no episode", key="compare")
-    summary = stats.summarize(merged)
-    text = stats.tables_text(summary)
-    if out is None:
-        return text, []
-    from srpb_gym.evaluation.spec import check_out_dir
-
-    check_out_dir(out)
-    files = [os.path.join(out, "episodes.csv"), os.path.join(out, "summary.json")]
-    stats.write_episodes(files[0], merged)
-    write_json(files[1], {"runs": list(dirs), "results": summary})
-    return text, files + stats.write_tables(summary, out) + _compare_bars(summary, out)
-
-
-def _label_duplicates(runs: list[tuple[str, list[EpisodeResult]]]) -> list[EpisodeResult]:
-    seen: dict[tuple[str, str], int] = {}
-    for _, rows in runs:
-        for pair in {(r.env, r.planner) for r in rows}:
-            seen[pair] = seen.get(pair, 0) + 1
-    merged = []
-    for label, rows in runs:
-        for r in rows:
-            if seen[(r.env, r.planner)] > 1:
-                r.planner = f"{r.planner}@{label}"
-            merged.append(r)
-    return merged
-
-
-def _compare_bars(summary: stats.Summary, out: str) -> list[str]:
-    from srpb_gym.evaluation import figures
-
-    try:
-        figures.pyplot()
-    except ImportError:
-        return []
-    paths = []
-    for env_id, planners in summary.items():
-        path = os.path.join(out, f"bars_{env_id}.png")
-        figures.bar_chart(planners, f"{env_id}: median and interquartile range", path)
-        paths.append(path)
-    return paths

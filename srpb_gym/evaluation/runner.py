@@ -4,8 +4,11 @@ process or spread over worker processes, with identical results either way.
 Episode ``i`` of a pair is ``env.reset(seed=config.seed + i)``. The planner's computation
 time is measured around ``planner.act`` with :func:`time.perf_counter` and handed to the
 environment with ``set_planning_time`` before each step, for classical planners and learned
-policies alike. Every finished episode is reported at once (its CSV row is written by the
-caller), so an interrupted run keeps what finished.
+policies alike. Before its first timed episode in a process, each planner is warmed up
+(:func:`warm_up`: compilation, first inference) on an unrecorded environment of its own, so
+that ``m_cef`` and ``m_cre`` measure the planner, not the compiler. Every finished episode
+is reported at once (its CSV row is written by the caller), so an interrupted run keeps
+what finished.
 """
 
 from __future__ import annotations
@@ -106,8 +109,27 @@ def run_episode(
             "steps": steps, "reset_time": reset_time}  # fmt: skip
 
 
+def warm_up(env: Any, planner: Planner, seed: int, steps: int) -> int:
+    """Drive ``planner`` untimed for up to ``steps`` control steps of ``env`` (reset with
+    ``seed``; an environment that records nothing), so that its compilation and first
+    inference happen before the timed episodes; returns the steps taken."""
+    if steps <= 0:
+        return 0
+    base = env.unwrapped
+    obs, _ = env.reset(seed=seed)
+    planner.reset(base.knowledge())
+    for step in range(steps):
+        action = planner.act(obs, base.knowledge())
+        base.set_planning_time(0.0)
+        obs, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            return step + 1
+    return steps
+
+
 class Workspace:
-    """The environments and planners of one process, built on first use and reused."""
+    """The environments and planners of one process, built on first use (each planner
+    warmed up then: :func:`warm_up`) and reused."""
 
     def __init__(self, config: EvalConfig) -> None:
         self.config = config
@@ -117,11 +139,16 @@ class Workspace:
         """The environment and planner of one (env id, planner number) pair."""
         key = (env_id, planner)
         if key not in self._pairs:
-            import gymnasium as gym
-
             spec = self.config.planners[planner]
-            env = gym.make(env_id, **self.config.env_kwargs(env_id, spec.name))
-            self._pairs[key] = (env, spec.build())
+            env = self.config.make_env(env_id, spec.name)
+            built = spec.build()
+            if self.config.warmup > 0:
+                scratch = self.config.make_env(env_id, render=False)
+                try:
+                    warm_up(scratch, built, self.config.warmup_seed, self.config.warmup)
+                finally:
+                    scratch.close()
+            self._pairs[key] = (env, built)
         return self._pairs[key]
 
     def run(self, task: Task) -> EpisodeResult:
@@ -258,13 +285,12 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
 
 def remove_unfinished(config: EvalConfig, tasks: Sequence[Task]) -> None:
     """Delete any file an unfinished episode may have left (a record cut short)."""
-    from srpb_gym.registration import SCENARIO_IDS
-
     for task in tasks:
         name = config.planners[task.planner].name
         folder = glob.escape(config.record_dir(task.env, name))
         videos = glob.escape(os.path.join(config.out, "videos"))
-        patterns = (os.path.join(folder, f"{SCENARIO_IDS[task.env]}_seed{task.seed}[._]*"),
+        stem = glob.escape(f"{config.scenario_name(task.env)}_seed{task.seed}")
+        patterns = (os.path.join(folder, f"{stem}[._]*"),
                     os.path.join(videos, f"{task.env}_{name}_seed{task.seed}.*"))  # fmt: skip
         for path in (p for pattern in patterns for p in glob.glob(pattern)):
             os.remove(path)

@@ -1,9 +1,13 @@
-"""What an evaluation runs: environment ids, planners, seeds, output folder, checked once.
+"""What an evaluation runs: environments, planners, seeds, output folder, checked once.
 
 :func:`resolve_config` turns user choices into an :class:`EvalConfig`, raising
 :class:`~srpb_gym.errors.InputError` (key = the command-line option) for anything wrong, so
 a run never starts with an argument that would fail halfway. Planners are described by
 :class:`PlannerSpec` (plain data), so worker processes can build their own.
+
+An environment is a registered id (``SRPB-Corridor-v0``) or a scenario file
+(``envs/my_lab.yaml``), run as ``SRPB-Custom-v0`` with that scenario and labelled by the
+scenario's name in tables, file names and ``episodes.csv``.
 """
 
 from __future__ import annotations
@@ -11,8 +15,9 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import os
+import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,25 +27,32 @@ import numpy as np
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
 from srpb_gym.planners import PLANNERS, Planner, check_settings, make_planner, planner_config
-from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.registration import CUSTOM_ID, SCENARIO_IDS
 
 DEFAULT_ENVS: tuple[str, ...] = ("SRPB-Corridor-v0",)
 DEFAULT_EPISODES = 5
+DEFAULT_WARMUP = 100
+"""Untimed control steps each planner takes before its first timed episode, per process:
+10 s at the 0.1 s control step, long enough to meet the people of the packaged scenarios,
+whose first sight compiles more of a planner than an empty scene does."""
+SCENARIO_SUFFIXES = (".yaml", ".yml")
 
 
 @dataclass(frozen=True)
 class PlannerSpec:
     """A planner to evaluate: a registered one (``planner`` with the settings ``config``,
     plain data: the fields to change, see :func:`srpb_gym.planners.make_planner`) or a
-    learned policy file (``policy``, ``algo``, ``vecnormalize``); ``name`` labels its
+    learned policy file (``policy``, its ``algo``, the ``vecnormalize`` statistics or
+    ``None`` for raw observations, and the places searched for them); ``name`` labels its
     results."""
 
     name: str
     planner: str | None = None
     config: Mapping[str, Any] = field(default_factory=dict)
     policy: str | None = None
-    algo: str = "PPO"
+    algo: str | None = None
     vecnormalize: str | None = None
+    vecnormalize_searched: tuple[str, ...] = ()
 
     def build(self) -> Planner:
         """A fresh planner instance."""
@@ -58,6 +70,8 @@ class PlannerSpec:
         out: dict[str, Any] = {"name": self.name, "class": f"{cls.__module__}.{cls.__qualname__}"}
         if self.policy is not None:
             out |= {"policy": self.policy, "algo": self.algo, "vecnormalize": self.vecnormalize}
+            if self.vecnormalize is None and self.vecnormalize_searched:
+                out["vecnormalize_searched"] = list(self.vecnormalize_searched)
         else:
             out |= {"planner": self.planner, "config": jsonable(self.config)}
         out["params"] = planner_params(planner)
@@ -67,7 +81,13 @@ class PlannerSpec:
 @dataclass(frozen=True)
 class EvalConfig:
     """A resolved evaluation: every (env, planner) pair runs ``episodes`` episodes with
-    seeds ``seed``, ``seed + 1``, ...; ``video`` episodes of each pair are filmed."""
+    seeds ``seed``, ``seed + 1``, ...; ``video`` episodes of each pair are filmed.
+
+    ``envs`` are labels: registered ids, or scenario names for the scenario files of
+    ``scenario_files`` ((label, file path) pairs). ``warmup``: untimed control steps of
+    each planner before its first timed episode in each process (0: none). ``resume``:
+    continue the run in ``out``. ``notes``: warnings and notes of the resolution
+    (one line each, e.g. ``"warning: ..."``)."""
 
     envs: tuple[str, ...]
     planners: tuple[PlannerSpec, ...]
@@ -79,24 +99,61 @@ class EvalConfig:
     semantics: str = "paper"
     preset: str = "paper"
     argv: tuple[str, ...] = ()
+    scenario_files: tuple[tuple[str, str], ...] = ()
+    warmup: int = DEFAULT_WARMUP
+    resume: bool = False
+    notes: tuple[str, ...] = ()
 
     @property
     def seeds(self) -> list[int]:
         """The seed of each episode index."""
         return [self.seed + i for i in range(self.episodes)]
 
+    @property
+    def warmup_seed(self) -> int:
+        """The seed of the warm-up episode: the first after the evaluated ones."""
+        return self.seed + self.episodes
+
     def record_dir(self, env_id: str, planner: str) -> str:
         """Where the episodes of one (env, planner) pair are written."""
         return os.path.join(self.out, "episodes", env_id, planner)
 
-    def env_kwargs(self, env_id: str, planner: str | None = None) -> dict[str, Any]:
-        """Keyword arguments of ``gym.make(env_id, ...)`` (records only with ``planner``)."""
+    def scenario_file(self, env: str) -> str | None:
+        """The scenario file of the environment labelled ``env``, or ``None`` (an id)."""
+        return dict(self.scenario_files).get(env)
+
+    def gym_id(self, env: str) -> str:
+        """The Gymnasium id to make the environment labelled ``env`` with."""
+        return env if self.scenario_file(env) is None else CUSTOM_ID
+
+    def scenario_name(self, env: str) -> str:
+        """The scenario's name, which the episode files are named after."""
+        return SCENARIO_IDS[env] if self.scenario_file(env) is None else env
+
+    def record_path(self, env: str, planner: str, seed: int) -> str:
+        """The ``.npz`` record of one episode."""
+        stem = f"{self.scenario_name(env)}_seed{seed}.npz"
+        return os.path.join(self.record_dir(env, planner), stem)
+
+    def env_kwargs(
+        self, env_id: str, planner: str | None = None, *, render: bool = True
+    ) -> dict[str, Any]:
+        """Keyword arguments of ``gym.make(self.gym_id(env_id), ...)`` (records only with
+        ``planner``; rendering with ``render`` when videos are filmed)."""
         kwargs: dict[str, Any] = {"metrics": {"semantics": self.semantics, "preset": self.preset}}
+        if self.scenario_file(env_id) is not None:
+            kwargs["scenario"] = self.scenario_file(env_id)
         if planner is not None:
             kwargs["record_dir"] = self.record_dir(env_id, planner)
-        if self.video > 0:
+        if self.video > 0 and render:
             kwargs["render_mode"] = "rgb_array"
         return kwargs
+
+    def make_env(self, env_id: str, planner: str | None = None, *, render: bool = True) -> Any:
+        """A new environment for the label ``env_id`` (see :meth:`env_kwargs`)."""
+        import gymnasium as gym
+
+        return gym.make(self.gym_id(env_id), **self.env_kwargs(env_id, planner, render=render))
 
 
 def default_out(now: float | None = None) -> str:
@@ -104,12 +161,18 @@ def default_out(now: float | None = None) -> str:
     return os.path.join("runs", "eval-" + time.strftime("%Y%m%d-%H%M%S", time.localtime(now)))
 
 
+def stderr_log(line: str) -> None:
+    """Print one ``srpb-gym: <line>`` to stderr."""
+    print(f"srpb-gym: {line}", file=sys.stderr)
+
+
 def resolve_config(
     envs: Sequence[str] | None = None,
     planners: Sequence[str] | None = None,
     policies: Sequence[str] = (),
     *,
-    policy_algo: str = "PPO",
+    policy_algo: str | None = None,
+    vecnormalize: str | None = "auto",
     episodes: int = DEFAULT_EPISODES,
     seed: int = 0,
     out: str | None = None,
@@ -119,48 +182,112 @@ def resolve_config(
     preset: str = "paper",
     planner_settings: Mapping[str, Mapping[str, Any]] | None = None,
     argv: Sequence[str] = (),
+    warmup: int = DEFAULT_WARMUP,
+    resume: bool = False,
+    log: Callable[[str], None] | None = stderr_log,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
     planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
 
-    ``planner_settings``: ``{planner name: settings}`` (plain data, e.g. from
-    :func:`srpb_gym.planners.config.planner_settings`); every name must be a registered
-    planner, and the settings of the planners evaluated are checked now (errors name
-    ``planner.<name>.<field>``); those of planners not evaluated are left out.
+    ``envs``: registered ids or scenario files. ``planner_settings``: ``{planner name:
+    settings}`` (plain data, e.g. from :func:`srpb_gym.planners.config.planner_settings`);
+    every name must be a registered planner, and the settings of the planners evaluated are
+    checked now (errors name ``planner.<name>.<field>``); those of planners not evaluated
+    are left out. ``policy_algo``: force the algorithm of the policy files (default: read
+    from each file); ``vecnormalize``: ``"auto"`` (look where training puts it), a file or
+    ``None`` (raw observations). ``workers`` is capped at ``os.cpu_count()`` and at the
+    number of episodes, with a warning. ``resume``: continue the run in ``out`` (see
+    :mod:`srpb_gym.evaluation.outdir`). ``log`` receives each note and warning as it is
+    made (they are also kept in ``notes``).
     """
-    _check_counts(episodes, workers, video)
+    from srpb_gym.evaluation.outdir import check_out_dir
+    from srpb_gym.evaluation.policies import policy_specs
+
+    notes: list[str] = []
+
+    def note(line: str) -> None:
+        notes.append(line)
+        if log is not None:
+            log(line)
+
+    _check_counts(episodes, workers, video, warmup)
     if seed < 0:
         raise InputError(f"must be at least 0, got {seed}", key="--seed")
     if semantics not in SEMANTICS:
         raise InputError(f"choose one of: {', '.join(SEMANTICS)}", key="--semantics")
     if preset not in PRESETS:
         raise InputError(f"choose one of: {', '.join(PRESETS)}", key="--preset")
-    env_ids = _unique(envs or DEFAULT_ENVS)
-    for env_id in env_ids:
-        if env_id not in SCENARIO_IDS:
-            raise InputError(f"unknown environment id {env_id!r}; choose one of: "
-                             f"{', '.join(SCENARIO_IDS)}", key="--env")  # fmt: skip
+    env_ids, files = resolve_envs(envs or DEFAULT_ENVS)
     if planners is None and not policies:
         planners = list(PLANNERS)
     settings = check_settings(planner_settings or {})
     specs = [_planner_spec(name, settings.get(name)) for name in _unique(planners or ())]
-    specs += _policy_specs(policies, policy_algo, env_ids)
+    probe = EvalConfig(tuple(env_ids), (), scenario_files=tuple(files))
+    specs += policy_specs(policies, policy_algo, vecnormalize, probe, note)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise InputError(f"two planners are named {dup!r}; rename a policy file", key="--policy")
-    out = check_out_dir(out or default_out())
+    workers = _cap_workers(workers, len(env_ids) * len(specs) * episodes, note)
+    out = check_out_dir(out or default_out(), resume=resume)
     return EvalConfig(tuple(env_ids), tuple(specs), episodes, seed, out, workers, video,
-                      semantics, preset, tuple(argv))  # fmt: skip
+                      semantics, preset, tuple(argv), tuple(files), warmup, resume,
+                      tuple(notes))  # fmt: skip
 
 
-def _check_counts(episodes: int, workers: int, video: int) -> None:
+def resolve_envs(items: Sequence[str]) -> tuple[list[str], list[tuple[str, str]]]:
+    """Labels of the environments ``items`` (registered ids or scenario files) and the
+    (label, file) pairs of the files; a file is labelled by its scenario's name."""
+    from srpb_gym.scenarios import load_scenario
+
+    labels: list[str] = []
+    files: list[tuple[str, str]] = []
+    for item in _unique(items):
+        if item in SCENARIO_IDS:
+            labels.append(item)
+            continue
+        if not (item.endswith(SCENARIO_SUFFIXES) or "/" in item or os.sep in item
+                or os.path.exists(item)):  # fmt: skip
+            raise InputError(f"unknown environment id {item!r}; choose one of: "
+                             f"{', '.join(SCENARIO_IDS)}, or give a scenario file (.yaml)",
+                             key="--env")  # fmt: skip
+        if not os.path.isfile(item):
+            why = "is a folder, not a scenario file" if os.path.isdir(item) else "no such file"
+            raise InputError(why, item, key="--env")
+        label = load_scenario(item).name
+        path = os.path.abspath(item)
+        if label in labels or label in SCENARIO_IDS:
+            other = dict(files).get(label, label)
+            raise InputError(f"its scenario is named {label!r}, as {other}; give the scenarios "
+                             f"different names (key 'name')", item, key="--env")  # fmt: skip
+        labels.append(label)
+        files.append((label, path))
+    return labels, files
+
+
+def _check_counts(episodes: int, workers: int, video: int, warmup: int) -> None:
     if episodes < 1:
         raise InputError(f"must be at least 1, got {episodes}", key="--episodes")
     if workers < 1:
         raise InputError(f"must be at least 1, got {workers}", key="--workers")
     if video < 0:
         raise InputError(f"must be at least 0, got {video}", key="--video")
+    if warmup < 0:
+        raise InputError(f"must be at least 0, got {warmup}", key="--warmup")
+
+
+def _cap_workers(workers: int, planned: int, note: Callable[[str], None]) -> int:
+    """``workers`` capped at the CPU count and at the number of episodes, with a warning."""
+    cpus = os.cpu_count() or 1
+    if workers > cpus:
+        note(f"warning: --workers {workers} is more than the {cpus} CPU cores "
+             f"(os.cpu_count() = {cpus}); using {cpus} (processes sharing a core "
+             f"inflate the planning times m_cef and m_cre)")  # fmt: skip
+        workers = cpus
+    if workers > planned:
+        note(f"note: --workers {workers} for {planned} episode(s); using {planned}")
+        workers = planned
+    return max(workers, 1)
 
 
 def _unique(items: Sequence[str]) -> list[str]:
@@ -175,76 +302,11 @@ def _planner_spec(name: str, settings: Mapping[str, Any] | None = None) -> Plann
     return PlannerSpec(name=name, planner=name, config=dict(settings or {}))
 
 
-def _policy_specs(paths: Sequence[str], algo: str, env_ids: Sequence[str]) -> list[PlannerSpec]:
-    """One spec per policy file, named after the file (``<folder>-<stem>`` when two
-    files share a stem); each file is loaded once here and checked against the spaces of
-    every environment, to fail early."""
-    from srpb_gym.planners.learned import ALGORITHMS, find_vecnormalize
+def check_out_dir(out: str, resume: bool = False) -> str:
+    """See :func:`srpb_gym.evaluation.outdir.check_out_dir`."""
+    from srpb_gym.evaluation.outdir import check_out_dir as check
 
-    if paths and algo.upper() not in ALGORITHMS:
-        raise InputError(f"choose one of: {', '.join(ALGORITHMS)}", key="--policy-algo")
-    stems = [Path(p).stem for p in paths]
-    specs = []
-    for path, stem in zip(paths, stems):
-        name = stem if stems.count(stem) == 1 else f"{Path(path).resolve().parent.name}-{stem}"
-        spec = PlannerSpec(name=name, policy=os.fspath(path), algo=algo.upper(),
-                           vecnormalize=find_vecnormalize(path))  # fmt: skip
-        specs.append(spec)
-    if specs:
-        _check_policy_spaces(specs, env_ids)
-    return specs
-
-
-def _check_policy_spaces(specs: Sequence[PlannerSpec], env_ids: Sequence[str]) -> None:
-    import gymnasium as gym
-
-    policies = [load_policy(spec) for spec in specs]
-    for env_id in env_ids:
-        env = gym.make(env_id)
-        try:
-            for policy in policies:
-                try:
-                    policy.check_spaces(env.observation_space, env.action_space)  # type: ignore[attr-defined]
-                except ValueError as exc:
-                    raise InputError(f"{exc} ({env_id})", key="--policy") from None
-        finally:
-            env.close()
-
-
-def load_policy(spec: PlannerSpec) -> Planner:
-    """Build a learned policy, turning every failure into an :class:`InputError`."""
-    path = str(spec.policy)
-    if not os.path.isfile(path):
-        raise InputError("no such file", path, key="--policy")
-    if not os.access(path, os.R_OK):
-        raise InputError("cannot read the file", path, key="--policy")
-    try:
-        return spec.build()
-    except ImportError as exc:
-        raise InputError(str(exc), key="--policy") from None
-    except Exception as exc:  # any loader failure means a bad file
-        why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise InputError(
-            f"not a stable-baselines3 {spec.algo} model ({why})", path, key="--policy"
-        ) from None
-
-
-def check_out_dir(out: str) -> str:
-    """Create ``out`` if needed; refuse a file, an unwritable folder or a finished run."""
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise InputError(f"{out} is an existing file, not a folder", key="--out")
-    if os.path.exists(os.path.join(out, "episodes.csv")):
-        raise InputError(f"{out} already holds a run (episodes.csv); choose another folder",
-                         key="--out")  # fmt: skip
-    try:
-        os.makedirs(out, exist_ok=True)
-        probe = os.path.join(out, f".write-test-{os.getpid()}")
-        with open(probe, "w"):
-            pass
-        os.remove(probe)
-    except OSError as exc:
-        raise InputError(f"cannot write into {out}: {exc.strerror or exc}", key="--out") from None
-    return out
+    return check(out, resume=resume)
 
 
 def planner_params(planner: Planner) -> dict[str, Any]:
@@ -279,6 +341,6 @@ def jsonable(value: Any) -> Any:
         return int(value)
     if isinstance(value, (float, np.floating)):
         return float(value) if np.isfinite(value) else None
-    if value is None or isinstance(value, str):
-        return value
+    if value is None or isinstance(value, (str, Path)):
+        return None if value is None else str(value)
     return repr(value)

@@ -11,6 +11,7 @@ episodes with the interquartile range, ``12.3 [10.1-14.0]``.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from collections.abc import Iterable, Sequence
@@ -42,14 +43,14 @@ def csv_row(result: EpisodeResult) -> list[str]:
 
 
 class EpisodeWriter:
-    """``episodes.csv``, one row appended and flushed as each episode finishes."""
+    """``episodes.csv``, one row appended and flushed as each episode finishes; it starts
+    with the header and the rows ``done`` (episodes finished earlier, when resuming)."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, done: Iterable[EpisodeResult] = ()) -> None:
         self.path = path
-        self._file = open(path, "w", newline="", encoding="utf-8")  # noqa: SIM115
+        write_episodes(path, done)
+        self._file = open(path, "a", newline="", encoding="utf-8")  # noqa: SIM115
         self._csv = csv.writer(self._file)
-        self._csv.writerow(CSV_COLUMNS)
-        self._file.flush()
 
     def write(self, result: EpisodeResult) -> None:
         self._csv.writerow(csv_row(result))
@@ -69,33 +70,95 @@ def write_episodes(path: str, results: Iterable[EpisodeResult]) -> None:
     os.replace(tmp, path)
 
 
+def read_text(path: str) -> str:
+    """The text of a UTF-8 file; :class:`InputError` naming the file (and the line) when it
+    cannot be read or is binary (not UTF-8, NUL bytes)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except FileNotFoundError:
+        raise InputError("no such file", path) from None
+    except IsADirectoryError:
+        raise InputError("is a folder, not a file", path) from None
+    except OSError as exc:
+        raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise InputError(f"not a UTF-8 text file (byte 0x{data[exc.start]:02x}): a binary "
+                         f"file?", path, line) from None  # fmt: skip
+    nul = text.find("\0")
+    if nul >= 0:
+        raise InputError("not a text file (NUL byte): a binary file?", path,
+                         text.count("\n", 0, nul) + 1)  # fmt: skip
+    return text
+
+
 def read_episodes(path: str) -> list[EpisodeResult]:
     """The rows of an ``episodes.csv``; :class:`InputError` naming the file and line."""
+    return parse_episodes(read_text(path), path)
+
+
+def parse_episodes(text: str, path: str) -> list[EpisodeResult]:
+    """The rows of ``episodes.csv`` text read from ``path``: every row checked (its number
+    of values, 0/1 flags, an integer seed, numbers, each episode once); a metric column
+    the file lacks reads as not computed (NaN). :class:`InputError` names file and line."""
+    reader = csv.reader(io.StringIO(text, newline=""))
+    rows: list[tuple[int, list[str]]] = []
     try:
-        with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))
-    except OSError as exc:
-        raise InputError(exc.strerror or str(exc), path) from None
+        for row in reader:
+            rows.append((reader.line_num, row))
+    except csv.Error as exc:
+        raise InputError(f"malformed CSV: {exc}", path, reader.line_num) from None
     if not rows:
         raise InputError("empty file (expected a header line)", path, line=1)
-    header = rows[0]
+    header = rows[0][1]
     missing = [c for c in CSV_COLUMNS[:6] if c not in header]
     if missing:
-        raise InputError(f"missing column(s) {', '.join(missing)}", path, line=1)
+        raise InputError(f"missing column(s) {', '.join(missing)}: not an episodes.csv "
+                         f"file?", path, line=1)  # fmt: skip
     col = {name: i for i, name in enumerate(header)}
-    return [_parse_row(row, col, path, n) for n, row in enumerate(rows[1:], start=2) if row]
+    out: list[EpisodeResult] = []
+    seen: dict[tuple[str, str, int], int] = {}
+    for line, row in rows[1:]:
+        if not row:
+            continue
+        result = _parse_row(row, col, path, line)
+        key = (result.env, result.planner, result.seed)
+        if key in seen:
+            raise InputError(f"episode {key[0]} / {key[1]} / seed {key[2]} is listed twice "
+                             f"(also on line {seen[key]})", path, line)  # fmt: skip
+        seen[key] = line
+        out.append(result)
+    return out
 
 
 def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> EpisodeResult:
     if len(row) != len(col):
         raise InputError(f"expected {len(col)} values, got {len(row)}", path, line)
+    flags = []
+    for name in ("is_success", "collision", "timeout"):
+        value = row[col[name]].strip()
+        if value not in ("0", "1"):
+            raise InputError(f"column {name} is {value!r}, expected 0 or 1", path, line)
+        flags.append(value == "1")
     try:
-        flags = [bool(int(row[col[c]])) for c in ("is_success", "collision", "timeout")]
-        metrics = {m: float(row[col[m]]) if m in col else math.nan for m in METRIC_NAMES}
         seed = int(row[col["seed"]])
-    except ValueError as exc:
-        raise InputError(str(exc), path, line) from None
-    return EpisodeResult(row[col["env"]], row[col["planner"]], seed, *flags, metrics)
+    except ValueError:
+        raise InputError(f"column seed is {row[col['seed']]!r}, expected an integer", path,
+                         line) from None  # fmt: skip
+    metrics = {}
+    for m in METRIC_NAMES:
+        try:
+            metrics[m] = float(row[col[m]]) if m in col else math.nan
+        except ValueError:
+            raise InputError(f"column {m} is {row[col[m]]!r}, expected a number", path,
+                             line) from None  # fmt: skip
+    env, planner = row[col["env"]], row[col["planner"]]
+    if not env or not planner:
+        raise InputError("empty env or planner", path, line)
+    return EpisodeResult(env, planner, seed, *flags, metrics)
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -152,13 +215,19 @@ def rate(value: float) -> str:
     return f"{value:.1f}".rstrip("0").rstrip(".")
 
 
-def cell(stats: dict[str, Any]) -> str:
-    """``median [q1-q3]`` (``[q1, q3]`` when q1 is negative)."""
+def cell(stats: dict[str, Any], episodes: int | None = None) -> str:
+    """``median [q1-q3]`` (``[q1, q3]`` when q1 is negative), followed by ``(n=18/20)``
+    when the statistics are over fewer values (``stats["n"]``, the finite ones) than the
+    ``episodes``; ``n/a`` when no episode has a value."""
     if stats["median"] is None:
         return "n/a"
     q1, q3 = number(stats["q1"]), number(stats["q3"])
     iqr = f"[{q1}-{q3}]" if stats["q1"] >= 0 else f"[{q1}, {q3}]"
-    return f"{number(stats['median'])} {iqr}"
+    n = stats.get("n")
+    fewer = ""
+    if episodes is not None and n is not None and n != episodes:
+        fewer = f" (n={n}/{episodes})"
+    return f"{number(stats['median'])} {iqr}{fewer}"
 
 
 def table(planners: dict[str, dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
@@ -167,8 +236,8 @@ def table(planners: dict[str, dict[str, Any]]) -> tuple[list[str], list[list[str
     rows = [["episodes", "-", *(str(planners[p]["episodes"]) for p in names)]]
     rows += [[label, "%", *(rate(planners[p][f"{label}_rate"]) for p in names)]
              for label, _ in OUTCOMES]  # fmt: skip
-    rows += [[m, METRIC_UNITS[m], *(cell(planners[p]["metrics"][m]) for p in names)]
-             for m in METRIC_NAMES]  # fmt: skip
+    rows += [[m, METRIC_UNITS[m], *(cell(planners[p]["metrics"][m], planners[p]["episodes"])
+                                     for p in names)] for m in METRIC_NAMES]  # fmt: skip
     return ["metric", "unit", *names], rows
 
 
@@ -207,17 +276,18 @@ def format_latex(title: str, header: list[str], rows: list[list[str]]) -> str:
 
 
 def table_csv(path: str, planners: dict[str, dict[str, Any]]) -> None:
-    """The table as numbers: metric, unit, then median, q1, q3 per planner (rates and
-    counts in the median column)."""
+    """The table as numbers: metric, unit, then median, q1, q3 and n (the episodes with a
+    value) per planner (rates and counts in the median column, blank where undefined)."""
     names = list(planners)
-    header = ["metric", "unit"] + [f"{p} {s}" for p in names for s in ("median", "q1", "q3")]
-    rows = [["episodes", "-", *(v for p in names for v in (planners[p]["episodes"], "", ""))]]
-    rows += [[label, "%", *(v for p in names for v in (planners[p][f"{label}_rate"], "", ""))]
+    keys = ("median", "q1", "q3", "n")
+    header = ["metric", "unit"] + [f"{p} {s}" for p in names for s in keys]
+    rows = [["episodes", "-", *(v for p in names for v in (planners[p]["episodes"], "", "", ""))]]
+    rows += [[label, "%", *(v for p in names
+                            for v in (planners[p][f"{label}_rate"], "", "", ""))]
              for label, _ in OUTCOMES]  # fmt: skip
     for m in METRIC_NAMES:
         stats = [planners[p]["metrics"][m] for p in names]
-        rows.append([m, METRIC_UNITS[m], *(_blank(s[k]) for s in stats
-                                          for k in ("median", "q1", "q3"))])  # fmt: skip
+        rows.append([m, METRIC_UNITS[m], *(_blank(s[k]) for s in stats for k in keys)])
     with open(path, "w", newline="", encoding="utf-8") as f:
         csv.writer(f).writerows([header, *rows])
 

@@ -1,15 +1,22 @@
 """A learned policy (a stable-baselines3 model file) behind the :class:`Planner` interface.
 
-``LearnedPolicy("runs/ppo/best_model.zip")`` loads the model on the CPU and, when a
-``<stem>_vecnormalize.pkl`` or ``vecnormalize.pkl`` (the RL-Zoo convention) lies beside it,
-normalises observations with the saved statistics, as during training. stable-baselines3
-and torch come from the ``train`` extra and are imported only when a policy is built.
+``LearnedPolicy("runs/ppo/best_model.zip")`` loads the model on the CPU (its algorithm read
+from the file: :func:`detect_algorithm`) and normalises observations with saved
+``VecNormalize`` statistics when :func:`find_vecnormalize` finds them where training puts
+them (RL Zoo and ``srpb-gym train`` layouts), as during training. stable-baselines3 and
+torch come from the ``train`` extra and are imported only when a policy is built.
+
+Failures are one line naming the file: :class:`PolicyFileError` for a model that cannot be
+loaded, :class:`VecNormalizeError` for a normalisation file that cannot be used.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
+import zipfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -19,7 +26,28 @@ from numpy.typing import NDArray
 from srpb_gym.planners.base import Knowledge, Planner
 
 INSTALL_HINT = 'pip install "srpb-gym[train]"'
-ALGORITHMS: tuple[str, ...] = ("PPO", "A2C", "SAC", "TD3", "DDPG")
+ALGORITHMS: tuple[str, ...] = ("PPO", "A2C", "SAC", "TD3", "DDPG", "DQN")
+"""stable-baselines3 algorithms a model file may hold (:func:`detect_algorithm`)."""
+VECNORMALIZE = "vecnormalize.pkl"
+
+_POLICY_MODULES = {
+    "stable_baselines3.sac.policies": "SAC",
+    "stable_baselines3.td3.policies": "TD3",
+    "stable_baselines3.dqn.policies": "DQN",
+}
+
+
+class PolicyFileError(ValueError):
+    """A model file that cannot be loaded: ``path`` and ``reason`` (one line); ``str()``
+    gives ``path: reason``."""
+
+    def __init__(self, path: str | os.PathLike[str], reason: str) -> None:
+        self.path, self.reason = os.fspath(path), reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+class VecNormalizeError(PolicyFileError):
+    """A ``VecNormalize`` file that cannot be used (``path``: that file)."""
 
 
 def import_sb3() -> Any:
@@ -41,40 +69,189 @@ def algorithm_class(algo: str) -> Any:
     return getattr(import_sb3(), name)
 
 
-def find_vecnormalize(path: str | os.PathLike[str]) -> str | None:
-    """The observation-normalisation file beside a model: ``<stem>_vecnormalize.pkl``, else
-    ``vecnormalize.pkl`` in the same folder, else ``None``."""
+def model_data(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The ``data`` JSON of a stable-baselines3 model ``.zip`` (the saved attributes).
+
+    Raises :class:`PolicyFileError` when the file is not such a zip archive.
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            raw = archive.read("data")
+    except KeyError:
+        why = "not a stable-baselines3 model (the zip has no 'data' entry)"
+        raise PolicyFileError(path, why) from None
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        why = "not a zip archive" if isinstance(exc, zipfile.BadZipFile) else str(exc)
+        raise PolicyFileError(path, f"not a stable-baselines3 model ({why})") from None
+    try:
+        data = json.loads(raw)
+    except (ValueError, UnicodeDecodeError):
+        why = "not a stable-baselines3 model (its 'data' entry is not JSON)"
+        raise PolicyFileError(path, why) from None
+    if not isinstance(data, dict):
+        raise PolicyFileError(path, "not a stable-baselines3 model (bad 'data')")
+    return data
+
+
+def detect_algorithm(path: str | os.PathLike[str]) -> str | None:
+    """The algorithm of a model file, read from its ``data`` JSON: the policy class's module
+    tells SAC, TD3 (DDPG when ``policy_delay`` is 1 and ``target_noise_clip`` 0) and DQN
+    apart from the actor-critic policies, of which PPO has a ``clip_range`` and A2C none.
+
+    ``None`` when the file gives no hint; :class:`PolicyFileError` when it is no model or
+    names a policy class outside stable-baselines3 (sb3-contrib, a custom class).
+    """
+    data = model_data(path)
+    policy = data.get("policy_class")
+    module = policy.get("__module__") if isinstance(policy, dict) else None
+    if not isinstance(module, str):
+        return None
+    if module in _POLICY_MODULES:
+        algo = _POLICY_MODULES[module]
+        if algo == "TD3" and data.get("policy_delay") == 1 and data.get("target_noise_clip") == 0:
+            return "DDPG"
+        return algo
+    if module == "stable_baselines3.common.policies":
+        return "PPO" if "clip_range" in data else "A2C"
+    raise PolicyFileError(path, f"its policy class comes from {module}, not from a "
+                          f"stable-baselines3 algorithm ({', '.join(ALGORITHMS)})")  # fmt: skip
+
+
+def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[Any, str]:
+    """Load a model on the CPU; returns it and its algorithm.
+
+    ``algo``: force one of :data:`ALGORITHMS`; ``None`` detects it from the file
+    (:func:`detect_algorithm`), else tries each algorithm in turn. Raises
+    :class:`PolicyFileError` naming the file, the algorithm(s) tried and why they failed.
+    """
+    path = os.fspath(path)
+    detected = detect_algorithm(path)
+    if algo is not None:
+        name = algo.upper()
+        try:
+            return algorithm_class(name).load(path, device="cpu"), name
+        except ImportError:
+            raise
+        except Exception as exc:
+            hint = f"; the file holds a {detected} model" if detected and detected != name else ""
+            raise PolicyFileError(path, f"cannot be loaded as a stable-baselines3 {name} model "
+                                  f"({_why(exc)}){hint}") from None  # fmt: skip
+    order = [detected] if detected else [a for a in ALGORITHMS if a != "DDPG"]
+    failures = []
+    for name in order:
+        try:
+            return algorithm_class(name).load(path, device="cpu"), name
+        except ImportError:
+            raise
+        except Exception as exc:
+            failures.append(f"{name}: {_why(exc)}")
+    raise PolicyFileError(path, f"not a loadable stable-baselines3 model (tried "
+                                f"{'; '.join(failures)})")  # fmt: skip
+
+
+def _why(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+# ---------------------------------------------------------------------------- VecNormalize
+def vecnormalize_candidates(
+    path: str | os.PathLike[str], env_ids: Sequence[str] = ()
+) -> list[Path]:
+    """Where observation-normalisation statistics of the model ``path`` may lie, in order:
+    ``<stem>_vecnormalize.pkl`` and ``vecnormalize.pkl`` beside it (``srpb-gym train``:
+    ``<run>/vecnormalize.pkl`` beside ``<run>/model.zip``), then the RL Zoo's
+    ``<run>/<env_id>/vecnormalize.pkl`` beside ``<run>/<env_id>.zip`` or
+    ``<run>/best_model.zip``: ``<stem>/``, each of ``env_ids`` as a subfolder, and the
+    model folder's only subfolder holding one."""
     model = Path(path)
-    for candidate in (model.with_name(f"{model.stem}_vecnormalize.pkl"),
-                      model.with_name("vecnormalize.pkl")):  # fmt: skip
+    folder = model.parent
+    out = [model.with_name(f"{model.stem}_{VECNORMALIZE}"), folder / VECNORMALIZE,
+           folder / model.stem / VECNORMALIZE]  # fmt: skip
+    out += [folder / env_id / VECNORMALIZE for env_id in env_ids]
+    try:
+        found = sorted(p for p in folder.glob(f"*/{VECNORMALIZE}") if p.is_file())
+    except OSError:
+        found = []
+    if len(found) == 1:
+        out.append(found[0])
+    return list(dict.fromkeys(out))
+
+
+def find_vecnormalize(path: str | os.PathLike[str], env_ids: Sequence[str] = ()) -> str | None:
+    """The first existing file of :func:`vecnormalize_candidates`, or ``None``."""
+    for candidate in vecnormalize_candidates(path, env_ids):
         if candidate.is_file():
             return str(candidate)
     return None
 
 
 def load_vecnormalize(path: str | os.PathLike[str]) -> Any:
-    """The ``VecNormalize`` object saved at ``path`` (without its environment).
+    """The ``VecNormalize`` object saved at ``path`` (without its environment), set to
+    evaluation mode (its statistics frozen).
 
-    Raises ``ValueError`` when the file holds something else.
+    Raises :class:`VecNormalizeError` naming the file when it cannot be read, is corrupt or
+    holds something else.
     """
     import_sb3()
     from stable_baselines3.common.vec_env import VecNormalize
 
-    with open(path, "rb") as f:
-        obj = pickle.load(f)  # the user's own training artefact
+    where = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            obj = pickle.load(f)  # the user's own training artefact
+    except OSError as exc:
+        raise VecNormalizeError(where, f"cannot read: {exc.strerror or exc}") from None
+    except Exception as exc:  # truncated, garbled or foreign pickle
+        raise VecNormalizeError(where, f"corrupt VecNormalize file ({_why(exc)})") from None
     if not isinstance(obj, VecNormalize):
-        raise ValueError(f"{os.fspath(path)}: not a VecNormalize file ({type(obj).__name__})")
+        raise VecNormalizeError(where, f"not a VecNormalize file (holds {type(obj).__name__})")
     obj.training = False
+    obj.norm_reward = False
     return obj
+
+
+# ---------------------------------------------------------------------------- spaces
+def describe_space(space: Any) -> str:
+    """A one-line description of a gymnasium space: kind, shape, dtype and bounds."""
+    spaces = getattr(space, "spaces", None)
+    if isinstance(spaces, dict):
+        return "Dict(" + ", ".join(f"{k}: {describe_space(v)}" for k, v in spaces.items()) + ")"
+    low, high = getattr(space, "low", None), getattr(space, "high", None)
+    if low is not None and high is not None:
+        low, high = np.asarray(low), np.asarray(high)
+        bounds = f"[{low.min():g}, {high.max():g}]" if low.size else "[]"
+        return f"{type(space).__name__}{tuple(space.shape)} {space.dtype} in {bounds}"
+    return " ".join(str(space).split())
+
+
+def spaces_differ(trained: Any, given: Any) -> bool:
+    """Whether a model trained on space ``trained`` cannot act in ``given``: another kind,
+    shape, size or bounds."""
+    if type(trained) is not type(given):
+        return True
+    a, b = getattr(trained, "spaces", None), getattr(given, "spaces", None)
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() != b.keys() or any(spaces_differ(a[k], b[k]) for k in a)
+    if getattr(trained, "shape", None) != getattr(given, "shape", None):
+        return True
+    if getattr(trained, "n", None) != getattr(given, "n", None):
+        return True
+    for bound in ("low", "high"):
+        x, y = getattr(trained, bound, None), getattr(given, bound, None)
+        if (x is None) != (y is None) or (x is not None and not np.array_equal(x, y)):
+            return True
+    return False
 
 
 class LearnedPolicy(Planner):
     """A stable-baselines3 model acting on the environment's observation.
 
-    ``path``: the model ``.zip``; ``algo``: its algorithm (see :data:`ALGORITHMS`);
-    ``vecnormalize``: a ``VecNormalize`` file, ``"auto"`` (default) to look beside the model
-    (:func:`find_vecnormalize`) or ``None`` for raw observations; ``deterministic``: take
-    the mode of the action distribution. The :class:`Knowledge` snapshot is not used.
+    ``path``: the model ``.zip``; ``algo``: its algorithm (see :data:`ALGORITHMS`), ``None``
+    to read it from the file; ``vecnormalize``: a ``VecNormalize`` file, ``"auto"``
+    (default) to look where training puts it (:func:`find_vecnormalize`) or ``None`` for
+    raw observations; ``deterministic``: take the mode of the action distribution. The
+    :class:`Knowledge` snapshot is not used.
     """
 
     name = "learned"
@@ -82,28 +259,40 @@ class LearnedPolicy(Planner):
     def __init__(
         self,
         path: str | os.PathLike[str],
-        algo: str = "PPO",
+        algo: str | None = None,
         vecnormalize: str | os.PathLike[str] | None = "auto",
         deterministic: bool = True,
     ) -> None:
         self.path = os.fspath(path)
-        self.algo = algo.upper()
         self.deterministic = deterministic
-        self.model = algorithm_class(self.algo).load(self.path, device="cpu")
+        self.model, self.algo = load_model(self.path, algo)
         if vecnormalize == "auto":
             vecnormalize = find_vecnormalize(self.path)
         self.vecnormalize = None if vecnormalize is None else os.fspath(vecnormalize)
-        self._normalizer = None if vecnormalize is None else load_vecnormalize(vecnormalize)
+        self._normalizer = None
+        if self.vecnormalize is not None:
+            self._normalizer = load_vecnormalize(self.vecnormalize)
+            stats = getattr(self._normalizer, "observation_space", None)
+            if stats is not None and spaces_differ(stats, self.model.observation_space):
+                raise VecNormalizeError(
+                    self.vecnormalize,
+                    f"statistics of the observation space "
+                    f"{describe_space(stats)}, the model {self.path} takes "
+                    f"{describe_space(self.model.observation_space)}",
+                )
 
     def check_spaces(self, observation_space: Any, action_space: Any) -> None:
-        """Raise ``ValueError`` unless the model was trained on these spaces' shapes."""
+        """Raise ``ValueError`` (one line naming both spaces) unless the model was trained
+        on these spaces: the same kind, shape and bounds."""
         pairs = (("observation", self.model.observation_space, observation_space),
                  ("action", self.model.action_space, action_space))  # fmt: skip
         for what, trained, given in pairs:
-            if type(trained) is not type(given) or _shape(trained) != _shape(given):
+            if spaces_differ(trained, given):
+                same = describe_space(trained) == describe_space(given)
                 raise ValueError(
-                    f"{self.path}: trained for the {what} space {trained}, "
-                    f"the environment has {given}"
+                    f"{self.path}: trained for the {what} space {describe_space(trained)}, "
+                    f"the environment has {describe_space(given)}"
+                    + (" (the bounds differ)" if same else "")
                 )
 
     def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
@@ -111,11 +300,3 @@ class LearnedPolicy(Planner):
             observation = self._normalizer.normalize_obs(observation)
         action, _ = self.model.predict(observation, deterministic=self.deterministic)
         return np.asarray(action, dtype=np.float32)
-
-
-def _shape(space: Any) -> Any:
-    """A comparable shape of a gymnasium space (keys and shapes for a ``Dict``)."""
-    spaces = getattr(space, "spaces", None)
-    if isinstance(spaces, dict):
-        return tuple((key, _shape(sub)) for key, sub in sorted(spaces.items()))
-    return getattr(space, "shape", None)

@@ -1,0 +1,114 @@
+"""Learned policies of an evaluation: each ``--policy`` file checked before the first episode.
+
+For every model file :func:`policy_specs` reads its algorithm (or takes the forced one),
+finds its observation-normalisation statistics (or says that none were found), loads both
+once and checks the model's observation and action spaces against every environment's,
+so that a run never evaluates a model on observations it was not trained for.
+stable-baselines3 and torch are imported only here, and only when a policy is given.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation.spec import EvalConfig, PlannerSpec
+from srpb_gym.planners import Planner
+
+if TYPE_CHECKING:
+    from srpb_gym.planners.learned import LearnedPolicy
+
+
+def policy_specs(
+    paths: Sequence[str],
+    algo: str | None,
+    vecnormalize: str | None,
+    probe: EvalConfig,
+    note: Callable[[str], None],
+) -> list[PlannerSpec]:
+    """One spec per policy file, named after the file (``<folder>-<stem>`` when two files
+    share a stem). ``algo``: forced algorithm or ``None`` (read from each file);
+    ``vecnormalize``: ``"auto"``, a file, or ``None``/``"none"`` (raw observations).
+    ``probe`` gives the environments; ``note`` receives one line per policy saying which
+    algorithm and which normalisation statistics it uses."""
+    if not paths:
+        return []
+    from srpb_gym.planners.learned import ALGORITHMS
+
+    if algo is not None and algo.upper() not in ALGORITHMS:
+        raise InputError(f"choose one of: {', '.join(ALGORITHMS)}", key="--policy-algo")
+    if vecnormalize is not None and vecnormalize.lower() == "none":
+        vecnormalize = None
+    if vecnormalize not in (None, "auto") and not os.path.isfile(vecnormalize):
+        raise InputError("no such file", vecnormalize, key="--vecnormalize")
+    stems = [Path(p).stem for p in paths]
+    specs = []
+    for path, stem in zip(paths, stems):
+        name = stem if stems.count(stem) == 1 else f"{Path(path).resolve().parent.name}-{stem}"
+        spec = _policy_spec(name, os.fspath(path), algo, vecnormalize, probe.envs)
+        policy = load_policy(spec)
+        spec = PlannerSpec(name=spec.name, policy=spec.policy, algo=policy.algo,
+                           vecnormalize=spec.vecnormalize,
+                           vecnormalize_searched=spec.vecnormalize_searched)  # fmt: skip
+        how = "forced by --policy-algo" if algo is not None else "read from the file"
+        note(f"note: policy {name}: {policy.algo} model ({how}); " + _normalisation(spec))
+        _check_spaces(policy, probe)
+        specs.append(spec)
+    return specs
+
+
+def _policy_spec(
+    name: str, path: str, algo: str | None, vecnormalize: str | None, env_ids: Sequence[str]
+) -> PlannerSpec:
+    from srpb_gym.planners.learned import find_vecnormalize, vecnormalize_candidates
+
+    searched: tuple[str, ...] = ()
+    if vecnormalize == "auto":
+        searched = tuple(str(p) for p in vecnormalize_candidates(path, env_ids))
+        vecnormalize = find_vecnormalize(path, env_ids)
+    return PlannerSpec(name=name, policy=path, algo=None if algo is None else algo.upper(),
+                       vecnormalize=vecnormalize, vecnormalize_searched=searched)  # fmt: skip
+
+
+def _normalisation(spec: PlannerSpec) -> str:
+    if spec.vecnormalize is not None:
+        return f"observations normalised with {spec.vecnormalize}"
+    if spec.vecnormalize_searched:
+        return ("no vecnormalize.pkl found (looked for "
+                f"{', '.join(spec.vecnormalize_searched)}): raw observations")  # fmt: skip
+    return "raw observations (--vecnormalize none)"
+
+
+def _check_spaces(policy: LearnedPolicy, probe: EvalConfig) -> None:
+    for env_id in probe.envs:
+        env = probe.make_env(env_id, render=False)
+        try:
+            policy.check_spaces(env.observation_space, env.action_space)
+        except ValueError as exc:
+            raise InputError(f"{exc} ({env_id})", key="--policy") from None
+        finally:
+            env.close()
+
+
+def load_policy(spec: PlannerSpec) -> LearnedPolicy:
+    """Build a learned policy, turning every failure into an :class:`InputError` naming
+    the file at fault (the model or its normalisation statistics)."""
+    from srpb_gym.planners.learned import PolicyFileError, VecNormalizeError
+
+    path = str(spec.policy)
+    if not os.path.isfile(path):
+        raise InputError("no such file", path, key="--policy")
+    if not os.access(path, os.R_OK):
+        raise InputError("cannot read the file", path, key="--policy")
+    try:
+        planner: Planner = spec.build()
+    except ImportError as exc:
+        raise InputError(str(exc), key="--policy") from None
+    except VecNormalizeError as exc:
+        raise InputError(exc.reason, exc.path, key="vecnormalize") from None
+    except PolicyFileError as exc:
+        raise InputError(exc.reason, exc.path, key="--policy") from None
+    return planner  # type: ignore[return-value]

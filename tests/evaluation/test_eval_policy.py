@@ -1,0 +1,160 @@
+"""``eval --policy``: the algorithm read from the model file, normalisation statistics found
+where training puts them (and said), spaces checked, every bad file named."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from srpb_gym.cli import main
+from srpb_gym.evaluation import resolve_config
+
+pytest.importorskip("stable_baselines3")
+
+ENV = "SRPB-Corridor-v0"
+
+
+def _error(capsys) -> str:
+    err = capsys.readouterr().err
+    lines = [line for line in err.strip().splitlines() if "error" in line]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    assert lines[0].startswith("srpb-gym: error: ")
+    return lines[0][len("srpb-gym: error: ") :]
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory) -> Path:
+    """An untrained PPO and SAC model of the corridor, and VecNormalize statistics."""
+    import gymnasium as gym
+    from stable_baselines3 import PPO, SAC
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    folder = tmp_path_factory.mktemp("models")
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV)]))
+    PPO("MlpPolicy", venv, n_steps=32, batch_size=32, device="cpu", seed=0).save(folder / "ppo.zip")
+    SAC("MlpPolicy", venv, buffer_size=100, device="cpu", seed=0).save(folder / "sac.zip")
+    venv.save(str(folder / "vecnormalize.pkl"))
+    (folder / "other").mkdir()
+    PPO("MlpPolicy", "Pendulum-v1", n_steps=32, batch_size=32, device="cpu").save(
+        folder / "other" / "pend.zip"
+    )
+    return folder
+
+
+def _resolve(tmp_path, *policies, **kwargs):
+    return resolve_config([ENV], None, [str(p) for p in policies], out=str(tmp_path / "o"),
+                          log=None, **kwargs)  # fmt: skip
+
+
+def test_rl_zoo_layout(models, tmp_path, capsys):
+    run = tmp_path / "logs" / "ppo" / f"{ENV}_1"
+    (run / ENV).mkdir(parents=True)
+    shutil.copy(models / "ppo.zip", run / f"{ENV}.zip")
+    shutil.copy(models / "ppo.zip", run / "best_model.zip")
+    shutil.copy(models / "vecnormalize.pkl", run / ENV / "vecnormalize.pkl")
+    config = _resolve(tmp_path, run / f"{ENV}.zip", run / "best_model.zip")
+    assert [s.vecnormalize for s in config.planners] == [str(run / ENV / "vecnormalize.pkl")] * 2
+    out = tmp_path / "eval"
+    assert main(["eval", "--env", ENV, "--policy", str(run / "best_model.zip"),
+                 "--episodes", "1", "--out", str(out)]) == 0  # fmt: skip
+    err = capsys.readouterr().err
+    assert (f"srpb-gym: note: policy best_model: PPO model (read from the file); observations "
+            f"normalised with {run / ENV / 'vecnormalize.pkl'}\n") in err  # fmt: skip
+    planner = json.loads((out / "config.json").read_text())["planners"][0]
+    assert planner["algo"] == "PPO"
+    assert planner["vecnormalize"] == str(run / ENV / "vecnormalize.pkl")
+
+
+def test_train_layout_and_none_found(models, tmp_path):
+    run = tmp_path / "train"
+    run.mkdir()
+    shutil.copy(models / "ppo.zip", run / "model.zip")
+    shutil.copy(models / "vecnormalize.pkl", run / "vecnormalize.pkl")
+    spec = _resolve(tmp_path, run / "model.zip").planners[0]
+    assert spec.vecnormalize == str(run / "vecnormalize.pkl")
+    (run / "vecnormalize.pkl").unlink()
+    lines: list[str] = []
+    config = resolve_config([ENV], None, [str(run / "model.zip")], out=str(tmp_path / "o2"),
+                            log=lines.append)  # fmt: skip
+    assert config.planners[0].vecnormalize is None
+    assert lines == [f"note: policy model: PPO model (read from the file); no vecnormalize.pkl "
+                     f"found (looked for {run}/model_vecnormalize.pkl, {run}/vecnormalize.pkl, "
+                     f"{run}/model/vecnormalize.pkl, {run}/{ENV}/vecnormalize.pkl): raw "
+                     "observations"]  # fmt: skip
+    described = config.planners[0].describe()
+    assert described["vecnormalize"] is None and len(described["vecnormalize_searched"]) == 4
+    raw = _resolve(tmp_path, models / "ppo.zip", vecnormalize="none").planners[0]
+    assert raw.vecnormalize is None
+
+
+def test_algorithm_is_read_from_the_file(models, tmp_path, capsys):
+    assert _resolve(tmp_path, models / "sac.zip").planners[0].algo == "SAC"
+    forced = _resolve(tmp_path, models / "ppo.zip", policy_algo="a2c").planners[0]
+    assert forced.algo == "A2C"
+    assert main(["eval", "--env", ENV, "--policy", str(models / "sac.zip"), "--policy-algo",
+                 "PPO", "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    line = _error(capsys)
+    assert line.startswith(f"{models}/sac.zip: --policy: cannot be loaded as a "
+                           "stable-baselines3 PPO model (")  # fmt: skip
+    assert line.endswith("; the file holds a SAC model")
+
+
+def test_spaces_must_match(models, tmp_path, capsys):
+    pendulum = models / "other" / "pend.zip"
+    assert main(["eval", "--env", ENV, "--policy", str(pendulum), "--out",
+                 str(tmp_path / "x")]) == 2  # fmt: skip
+    line = _error(capsys)
+    assert line.startswith(f"--policy: {pendulum}: trained for the observation space Box(3,) "
+                           "float32 in [-8, 8], the environment has Box(")  # fmt: skip
+    assert line.endswith(f"({ENV})")
+    shutil.copy(models / "vecnormalize.pkl", tmp_path / "vecnormalize.pkl")
+    shutil.copy(pendulum, tmp_path / "pend.zip")
+    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "pend.zip"), "--out",
+                 str(tmp_path / "x")]) == 2  # fmt: skip
+    assert _error(capsys).startswith(f"{tmp_path}/vecnormalize.pkl: vecnormalize: statistics "
+                                     "of the observation space Box(")  # fmt: skip
+
+
+def test_a_corrupt_vecnormalize_file_is_named(models, tmp_path, capsys):
+    (tmp_path / "model.zip").write_bytes((models / "ppo.zip").read_bytes())
+    (tmp_path / "vecnormalize.pkl").write_bytes(b"\x80\x04garbage")
+    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "model.zip"),
+                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert _error(capsys).startswith(f"{tmp_path}/vecnormalize.pkl: vecnormalize: corrupt "
+                                     "VecNormalize file (")  # fmt: skip
+    (tmp_path / "vecnormalize.pkl").write_bytes(b"\x80\x04K\x01.")  # pickled int 1
+    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "model.zip"),
+                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert _error(capsys) == (f"{tmp_path}/vecnormalize.pkl: vecnormalize: not a VecNormalize "
+                              "file (holds int)")  # fmt: skip
+    assert (
+        main(
+            [
+                "eval",
+                "--env",
+                ENV,
+                "--policy",
+                str(tmp_path / "model.zip"),
+                "--vecnormalize",
+                str(tmp_path / "none.pkl"),
+                "--out",
+                str(tmp_path / "x"),
+            ]
+        )
+        == 2
+    )
+    assert _error(capsys) == f"{tmp_path}/none.pkl: --vecnormalize: no such file"
+
+
+def test_policies_stay_lazy():
+    code = (
+        "import sys, srpb_gym, srpb_gym.cli, srpb_gym.evaluation, srpb_gym.planners.learned; "
+        "print(sorted(m for m in ('torch', 'stable_baselines3') if m in sys.modules))"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.stdout.strip() == "[]", done.stderr
