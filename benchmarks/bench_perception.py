@@ -3,7 +3,8 @@
 A 30 m corridor with doors and clutter (10 wall segments), 20 people and the robot. Prints
 microseconds per ``Lidar.scan`` (181 beams, and the 360-beam "wide" preset) and per
 ``PeopleDetector.detect`` (20 people, camera and lidar presets), next to a loop of pymunk
-``Space.segment_query_first`` calls, one per beam, for the same scan in the same run.
+``Space.segment_query_first`` calls, one per beam, for the same scan in the same run; then
+the simulation's per-robot sensing call (:func:`srpb_gym.perception.sensing.sense`).
 
     python benchmarks/bench_perception.py [--repeat 2000] [--seed 0]
 """
@@ -19,6 +20,7 @@ import numpy as np
 import pymunk
 
 from srpb_gym.perception import Lidar, PeopleDetector
+from srpb_gym.perception.sensing import sense
 
 N_PEOPLE = 20
 
@@ -116,6 +118,19 @@ def main() -> None:
             f"PeopleDetector.detect [{preset}, {N_PEOPLE} people]: "
             f"{time_us(detect, args.repeat):8.2f} us/call"
         )
+
+    # what the simulation calls per robot: the draws, then one compiled call
+    lidar, detector, dist = Lidar("default"), PeopleDetector("camera"), np.zeros(len(poses))
+
+    def sensing(i: int) -> int:
+        lidar.draw(rng)
+        detector.draw(rng, N_PEOPLE)
+        return sense(poses, i % 64, segs, circles, skip, True, dist, *lidar.arrays,
+                     people_xy, people_yaw, people_circle, *detector.arrays)  # fmt: skip
+
+    print(f"sense [default lidar, camera, {N_PEOPLE} people, draws included]: "
+          f"{time_us(sensing, args.repeat):8.2f} us/call (Lidar.scan + obstacle distance + "
+          "PeopleDetector.detect, as the simulation runs them)")  # fmt: skip
 
 
 if __name__ == "__main__":
