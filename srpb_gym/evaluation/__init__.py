@@ -25,7 +25,7 @@ and pygame are imported only by the functions that need them.
 
 from srpb_gym.evaluation.compare import compare_runs
 from srpb_gym.evaluation.harness import RunOutcome, run_evaluation
-from srpb_gym.evaluation.runner import EpisodeResult, Task, run_episode
+from srpb_gym.evaluation.runner import EpisodeResult, Task, run_episode, warm_up
 from srpb_gym.evaluation.spec import EvalConfig, PlannerSpec, resolve_config
 from srpb_gym.evaluation.stats import read_episodes, summarize
 
@@ -41,4 +41,5 @@ __all__ = [
     "run_episode",
     "run_evaluation",
     "summarize",
+    "warm_up",
 ]
