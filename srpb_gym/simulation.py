@@ -162,6 +162,7 @@ class Simulation:
         self.velocity = np.zeros((n_robots, 3))  # measured body-frame velocity
         self.obstacle_dist = np.zeros(n_robots)
         self._world_cmd = np.zeros((n_robots, 3))
+        self._before = np.zeros((n_robots, 3))  # poses before the physics of a step
         self._robot_radius = np.full(n_robots, self.robot_config.radius)
         self.robots = [self._robot_state(r.goal) for r in layout.robots]
         self._init_group_buffers()
@@ -213,10 +214,10 @@ class Simulation:
         if cmd.shape != self.command.shape:
             cmd = cmd.reshape(self.n_robots, 3)
         self._planning_time = planning_time
-        dt, world = self.config.control_dt, self.world
-        limit_commands(cmd, self.command, self._low, self._high, self._acc, dt, self._lateral,
-                       self.command)  # fmt: skip
-        before = world.robot_pose.copy()
+        dt, world, before = self.config.control_dt, self.world, self._before
+        _before_physics(cmd, self.command, self._low, self._high, self._acc, dt, self._lateral,
+                        world.robot_pose, before, world.collisions, self._rounds[2],
+                        self._world_cmd)  # fmt: skip
         self._advance_physics()
         _after_physics(before, world.robot_pose, world.people_xy, dt, self.velocity, self.circles)
         self.steps += 1
@@ -224,11 +225,13 @@ class Simulation:
         self._sense_and_record()
 
     def _advance_physics(self) -> None:
+        """The crowd's velocities and the physics substeps (the first world commands are
+        set by :func:`_before_physics`)."""
         world, crowd, cmd = self.world, self.crowd, self._world_cmd
         rounds, sub, dt = self._rounds
-        world.collisions.fill(False)
         for k in range(rounds):
-            body_to_world(self.command, world.robot_pose, dt, cmd)
+            if k:
+                body_to_world(self.command, world.robot_pose, dt, cmd)
             v = crowd.desired_velocity(self.t + k * dt, dt, world.robot_pose, cmd,
                                        self._robot_radius, self.walls, self.rng)  # fmt: skip
             world.step(cmd, v, sub)
@@ -307,6 +310,19 @@ class Simulation:
     def collisions(self) -> NDArray[np.bool_]:
         """(R, 3) contacts of each robot during the last step: wall, person, robot."""
         return self.world.collisions
+
+
+@njit(cache=True, error_model="numpy")
+def _before_physics(target, command, low, high, acc, dt, lateral, pose, before, collisions,
+                    round_dt, world_cmd):  # fmt: skip
+    """The limited commands (:func:`~srpb_gym.sim.robot.limit_commands`, into ``command``),
+    the poses before the physics, no collisions yet, and the world-frame commands of the
+    first physics round of ``round_dt`` (:func:`~srpb_gym.sim.robot.body_to_world`)."""
+    limit_commands(target, command, low, high, acc, dt, lateral, command)
+    for r in range(pose.shape[0]):
+        before[r, 0], before[r, 1], before[r, 2] = pose[r, 0], pose[r, 1], pose[r, 2]
+        collisions[r, :] = False
+    body_to_world(command, pose, round_dt, world_cmd)
 
 
 @njit(cache=True, error_model="numpy")
