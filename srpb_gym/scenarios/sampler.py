@@ -15,8 +15,9 @@
    then every unit's placement and parameters. People keep ``GAP`` from walls, each other
    and formation circles and ``ROBOT_GAP`` from every robot start.
 
-Random placements are retried up to ``MAX_TRIES`` times per unit; a route entry is redrawn
-as a whole up to ``ENTRY_TRIES`` times. Then a located :class:`~srpb_gym.errors.InputError`
+Random placements are retried up to ``MAX_TRIES`` times per robot point or unit; several
+robots are redrawn together up to ``ROBOTS_TRIES`` times, a route entry as a whole up to
+``ENTRY_TRIES`` times. Then a located :class:`~srpb_gym.errors.InputError`
 names the entry that could not be placed.
 """
 
@@ -28,6 +29,7 @@ from collections.abc import Callable
 import numpy as np
 
 from srpb_gym.angles import wrap_angle
+from srpb_gym.errors import InputError
 from srpb_gym.scenarios.schema import (
     PLACEMENT_GAP,
     Range,
@@ -41,6 +43,7 @@ from srpb_gym.sim.layout import EpisodeLayout, FormationLayout, PersonLayout, Ro
 
 MAX_TRIES = 200  # random placements per robot pose, formation or walking unit
 ENTRY_TRIES = 50  # redraws of a whole route entry
+ROBOTS_TRIES = 20  # redraws of all the robots' starts and goals when one does not fit
 GAP = PLACEMENT_GAP  # m, smallest gap between bodies, and from bodies to walls, at the start
 ROBOT_GAP = 0.3  # m, smallest gap between a person and a robot at the start
 ROBOTS_GAP = 0.3  # m, smallest gap between two robots' start and goal circles
@@ -132,7 +135,20 @@ def _yaw(ctx: _Context, spec: YawSpec, towards: float) -> float:
 
 
 def _robots(ctx: _Context, specs: tuple[RobotSpec, ...]) -> tuple[RobotLayout, ...]:
-    """The robots' starts and goals, robot i from ``specs[i]``, each clear of the others'."""
+    """The robots' starts and goals, robot i from ``specs[i]``, each clear of the others';
+    several robots are all drawn again when one of them does not fit."""
+    redraws = 1 if len(specs) == 1 else ROBOTS_TRIES
+    for _ in range(redraws - 1):
+        try:
+            return _draw_robots(ctx, specs, redraws)
+        except InputError:
+            pass
+    return _draw_robots(ctx, specs, redraws)
+
+
+def _draw_robots(
+    ctx: _Context, specs: tuple[RobotSpec, ...], redraws: int
+) -> tuple[RobotLayout, ...]:
     n, space, radius = len(specs), ctx.space, ctx.scenario.robot_radius
     placed = _Discs()  # the start and goal circles of the robots drawn so far
     out = []
@@ -140,7 +156,7 @@ def _robots(ctx: _Context, specs: tuple[RobotSpec, ...]) -> tuple[RobotLayout, .
         labels = space.robot_labels
         if n > 1:
             labels = space.labels_between(spec.start.place, spec.goal.place)
-        robot = _robot(ctx, spec, Scenario.robot_key(i, n), labels, placed)
+        robot = _robot(ctx, spec, Scenario.robot_key(i, n), labels, placed, redraws)
         for x, y, _ in (robot.start, robot.goal):
             placed.add(x, y, radius)
         out.append(robot)
@@ -148,21 +164,22 @@ def _robots(ctx: _Context, specs: tuple[RobotSpec, ...]) -> tuple[RobotLayout, .
 
 
 def _robot(
-    ctx: _Context, spec: RobotSpec, key: str, labels: frozenset[int], placed: _Discs
-) -> RobotLayout:
+    ctx: _Context, spec: RobotSpec, key: str, labels: frozenset[int], placed: _Discs,
+    redraws: int,
+) -> RobotLayout:  # fmt: skip
     space = ctx.space
 
     def reaching(x: float, y: float) -> bool:
         return space.label_at(x, y) in labels
 
-    start = _draw_robot_point(ctx, spec, key, "start", reaching, placed)
+    start = _draw_robot_point(ctx, spec, key, "start", reaching, placed, redraws)
     label = space.label_at(*start)
 
     def near_goal(x: float, y: float) -> bool:
         far = math.dist(start, (x, y)) > spec.goal_tolerance
         return far and space.label_at(x, y) == label
 
-    goal = _draw_robot_point(ctx, spec, key, "goal", near_goal, placed)
+    goal = _draw_robot_point(ctx, spec, key, "goal", near_goal, placed, redraws)
     towards = math.atan2(goal[1] - start[1], goal[0] - start[0])
     return RobotLayout(
         start=(start[0], start[1], _yaw(ctx, spec.start.yaw, towards)),
@@ -172,7 +189,7 @@ def _robot(
 
 def _draw_robot_point(
     ctx: _Context, spec: RobotSpec, key: str, name: str,
-    accept: Callable[[float, float], bool], placed: _Discs,
+    accept: Callable[[float, float], bool], placed: _Discs, redraws: int,
 ) -> Point:  # fmt: skip
     """A start or goal point of ``spec`` clear of walls and of the ``placed`` robots."""
     place, radius = getattr(spec, name).place, ctx.scenario.robot_radius
@@ -183,10 +200,11 @@ def _draw_robot_point(
         if clear and accept(x, y):
             return (x, y)
     others = placed.items and f", {ROBOTS_GAP:g} m clear of the other robots' starts and goals"
+    again = redraws > 1 and f"; all robots drawn {redraws} times"
     raise ctx.scenario.error(
         f"{key}.{name}.position",
         f"could not draw a {name} for a robot of radius {radius:g} m clear of walls{others or ''} "
-        f"and reachable ({tries} tries)",
+        f"and reachable ({tries} tries{again or ''})",
     )
 
 
