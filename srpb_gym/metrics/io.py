@@ -14,7 +14,9 @@ PathLike = str | os.PathLike
 
 
 def load_episode(
-    path: PathLike, people_path: PathLike | None = None, groups_path: PathLike | None = None
+    path: PathLike,
+    people_path: PathLike | bool | None = None,
+    groups_path: PathLike | bool | None = None,
 ) -> EpisodeRecord:
     """Load an episode, choosing the reader by the suffix of ``path``.
 
@@ -22,7 +24,9 @@ def load_episode(
       given.
     - anything else: an SRPB native robot log (:mod:`srpb_gym.metrics.io_native`). When
       ``people_path`` / ``groups_path`` are not given and the robot log is named
-      ``*_robot.txt``, existing ``*_people.txt`` / ``*_groups.txt`` siblings are used.
+      ``*_robot.txt``, existing ``*_people.txt`` / ``*_groups.txt`` siblings are used; a
+      log that is neither given nor found is refused (the social metrics cannot be
+      computed without it), and ``False`` reads a run that truly logged none.
 
     Raises :class:`InputError` for missing or malformed files.
     """
