@@ -4,9 +4,12 @@
 >>> from srpb_gym.scenarios import load_scenario, sample
 >>> scenario = load_scenario("corridor")  # or a path to a YAML file
 >>> layout = sample(scenario, np.random.default_rng(0))  # an EpisodeLayout
+>>> pair = sample(scenario, np.random.default_rng(0), n_robots=2)  # from scenario.robots
 
-Scenarios are checked and sampled for a robot of a given radius (default
+Scenarios are checked and sampled for robots of a given radius (default
 ``DEFAULT_ROBOT_RADIUS``, 0.275 m): ``load_scenario("doorway", robot_radius=0.45)``.
+One robot starts from the scenario's ``robot`` entry, several (up to
+``scenario.max_robots``) from its ``robots`` entries.
 The file format is documented in ``envs/README.md``.
 
 Modules, each importing only those before it: ``yaml_io`` (safe YAML reading with line
