@@ -3,10 +3,31 @@
 Importing the package registers the Gymnasium ids ``SRPB-Corridor-v0``,
 ``SRPB-FFormation-v0``, ``SRPB-Crossing-v0``, ``SRPB-Crowd-v0``, ``SRPB-Doorway-v0`` and
 ``SRPB-Custom-v0`` (``gym.make("SRPB-Custom-v0", scenario="my_lab.yaml")``).
+``srpb_gym.parallel_env(scenario="crowd", n_robots=3)`` makes the PettingZoo multi-robot
+environment (:mod:`srpb_gym.pettingzoo_env`; ``srpb_gym.aec_env(...)`` its AEC version).
 """
+
+from __future__ import annotations
+
+from typing import Any
 
 __version__ = "0.1.0"
 
 from srpb_gym.registration import register_envs
 
 register_envs()
+
+
+def parallel_env(**kwargs: Any) -> Any:
+    """The PettingZoo ``ParallelEnv`` of several robots (arguments: those of ``gym.make``
+    plus ``n_robots``; see :class:`srpb_gym.pettingzoo_env.SRPBParallelEnv`)."""
+    from srpb_gym.pettingzoo_env import parallel_env as make
+
+    return make(**kwargs)
+
+
+def aec_env(**kwargs: Any) -> Any:
+    """The PettingZoo AEC version of :func:`parallel_env` (order enforced)."""
+    from srpb_gym.pettingzoo_env import env as make
+
+    return make(**kwargs)

@@ -71,7 +71,7 @@ def episode_layout(
         if strict:
             raise InputError(message, key=f"options.{unknown[0]}")
         warnings.warn(f"options.{unknown[0]}: {message}; ignored", stacklevel=3)
-    layout = sample(scenario, rng) if n_robots == 1 else sample(scenario, rng, n_robots=n_robots)
+    layout = sample(scenario, rng, n_robots=n_robots)
     if not options.get("people", True):
         layout = replace(layout, people=(), formations=())
     if "start" in options or "goal" in options:

@@ -28,7 +28,7 @@ from srpb_gym.scenarios.space import point_distance
 HERE = Path(__file__).resolve().parent
 # layouts drawn with one robot before the ``robots`` key existed ("name|radius|seed")
 RECORDED = json.loads((HERE / "single_robot_layouts.json").read_text())
-ROBOT_COUNTS = {"corridor": 2, "crossing": 4, "crowd": 8, "doorway": 4, "fformation": 3}
+ROBOT_COUNTS = {"corridor": 3, "crossing": 4, "crowd": 8, "doorway": 4, "fformation": 3}
 CASES = [(name, n) for name in sorted(ROBOT_COUNTS) for n in (1, 2, 3, 8)
          if n <= ROBOT_COUNTS[name]]  # fmt: skip
 SEEDS = 40
@@ -128,8 +128,8 @@ def test_single_robot_ignores_the_robots_entries():
 
 def test_more_robots_than_places_names_the_limit():
     with pytest.raises(InputError) as info:
-        sample(load_scenario("corridor"), np.random.default_rng(0), n_robots=3)
-    assert info.value.message == "scenario 'corridor' has places for at most 2 robots, got 3"
+        sample(load_scenario("corridor"), np.random.default_rng(0), n_robots=4)
+    assert info.value.message == "scenario 'corridor' has places for at most 3 robots, got 4"
     assert str(info.value) == f"n_robots: {info.value.message}" and info.value.key == "n_robots"
     alone = dataclasses.replace(load_scenario("crowd"), robots=())
     with pytest.raises(InputError, match="'crowd' has places for at most 1 robot, got 2"):

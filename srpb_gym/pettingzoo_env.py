@@ -1,0 +1,270 @@
+"""The PettingZoo environment: several robots sharing a world of walls and people, each
+scored by SRPB.
+
+:class:`SRPBParallelEnv` is a thin adapter over one
+:class:`~srpb_gym.simulation.Simulation` and one :class:`~srpb_gym.task.RobotTask` per
+robot, the same task the Gymnasium environment uses; the adapter adds the PettingZoo API,
+the agents that leave, the time and step limits, planning times and rendering.
+
+Module-level functions follow PettingZoo's environment families::
+
+    from srpb_gym import pettingzoo_env as srpb_pz
+    par = srpb_pz.parallel_env(scenario="crowd", n_robots=3)  # ParallelEnv
+    aec = srpb_pz.env(scenario="crowd", n_robots=3)           # AEC, order enforced
+    raw = srpb_pz.raw_env(scenario="crowd", n_robots=3)       # AEC, unwrapped
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import uuid
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.utils import EzPickle, seeding
+from numpy.typing import NDArray
+from pettingzoo import AECEnv, ParallelEnv
+from pettingzoo.utils import conversions, wrappers
+
+from srpb_gym.episode_setup import build_simulation, episode_layout, out_of_time
+from srpb_gym.errors import InputError
+from srpb_gym.planners.base import Knowledge
+from srpb_gym.scenarios import load_scenario
+from srpb_gym.sim.robot import RobotConfig
+from srpb_gym.task import RobotTask, build_task
+
+__all__ = ["SRPBParallelEnv", "env", "parallel_env", "raw_env"]
+
+
+class SRPBParallelEnv(ParallelEnv, EzPickle):
+    """Several robots navigating among people, each to its own goal, scored by SRPB.
+
+    ## Description
+    ``n_robots`` robots (agents ``robot_0``, ``robot_1``, ...) share one world with the
+    scenario's walls, walking people and F-formations. Each has its own start and goal
+    (the scenario's ``robots`` regions; with one robot its ``robot`` entry, exactly as the
+    Gymnasium environment), its own lidar, people detector and tracker, and its own SRPB
+    record. Robots are real to each other: each appears in the others' lidar, counts as an
+    obstacle for ``m_obs`` and as a collision on contact, and people react to every
+    robot. A robot's tracker reports people only, like SRPB's: another robot is an
+    obstacle in its lidar, never a tracked person.
+
+    ## Spaces, rewards, info
+    Each agent's observation and action spaces, reward terms and step info are those of
+    :class:`srpb_gym.env.SRPBNavEnv` with the same arguments (see its docstring).
+
+    ## Agents leaving and episode end
+    An agent that reaches its goal, or collides with ``collision="terminate"``, is
+    terminated: its last step returns its final info with its ``srpb/<metric>`` and
+    ``srpb_gt/<metric>`` episode metrics, and it leaves ``agents``. Its robot stays where
+    it stopped, as a standing obstacle (it keeps its body and receives zero commands). At
+    the scenario's time limit, or after ``max_steps`` steps, every remaining agent is
+    truncated with its metrics. The episode ends when no agent is left.
+
+    ## Arguments
+    ``scenario``, ``render_mode``, ``observation``, ``reward``, ``reward_weights``,
+    ``collision``, ``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``:
+    as :class:`srpb_gym.env.SRPBNavEnv` (the episode files of robot r end in ``_robot<r>``
+    when there are several). ``n_robots``: how many robots; more than the scenario has
+    places for is an error that names its limit. ``max_steps``: an optional step limit.
+    ``reset(options=...)`` takes ``people`` (False: an empty variant) and, with one robot,
+    ``start`` and ``goal``; other keys are ignored with a warning (PettingZoo's API test
+    passes options of its own).
+
+    The planner computation time of each agent's step (``m_cef``, ``m_cre``) is the wall
+    time between the previous ``reset``/``step`` returning and this ``step``, unless a
+    harness calls :meth:`set_planning_time` with each agent's own time.
+
+    ## Version History
+    * v0: initial release.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {
+        "name": "srpb_v0",
+        "render_modes": ["human", "rgb_array"],
+        "render_fps": 10,
+        "is_parallelizable": True,
+    }
+
+    def __init__(
+        self,
+        scenario: str = "crowd",
+        n_robots: int = 2,
+        render_mode: str | None = None,
+        observation: str | Mapping[str, Any] | None = None,
+        reward: str = "srpb",
+        reward_weights: Mapping[str, float] | None = None,
+        collision: str = "terminate",
+        metrics: Mapping[str, Any] | None = None,
+        record_dir: str | None = None,
+        sim: Mapping[str, Any] | None = None,
+        robot: str | Mapping[str, Any] | None = None,
+        sensors: Mapping[str, Any] | None = None,
+        crowd: Mapping[str, Any] | None = None,
+        max_steps: int | None = None,
+    ) -> None:
+        EzPickle.__init__(self, scenario, n_robots, render_mode, observation, reward,
+                          reward_weights, collision, metrics, record_dir, sim, robot, sensors,
+                          crowd, max_steps)  # fmt: skip
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise InputError(f"expected one of {self.metadata['render_modes']}, got "
+                             f"{render_mode!r}", key="render_mode")  # fmt: skip
+        if isinstance(n_robots, bool) or not isinstance(n_robots, int) or n_robots < 1:
+            raise InputError(f"expected a whole number >= 1, got {n_robots!r}", key="n_robots")
+        if max_steps is not None and (
+            isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1
+        ):
+            raise InputError(f"expected a whole number >= 1, got {max_steps!r}",
+                             key="max_steps")  # fmt: skip
+        self.render_mode = render_mode
+        robot_cfg = RobotConfig.from_spec(robot)
+        self.scenario = load_scenario(scenario, robot_radius=robot_cfg.radius)
+        self.scenario.robot_specs(n_robots)  # more robots than places: an error naming them
+        self.n_robots, self.max_steps = n_robots, max_steps
+        self.sim = build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
+        settings = (observation, reward, reward_weights, collision, metrics, record_dir)
+        tolerances = [_robot_spec(self.scenario, r, n_robots).goal_tolerance
+                      for r in range(n_robots)]  # fmt: skip
+        self.tasks: list[RobotTask] = [build_task(self.sim, r, tolerance, *settings)
+                                       for r, tolerance in enumerate(tolerances)]  # fmt: skip
+        self.possible_agents = [f"robot_{r}" for r in range(n_robots)]
+        self.agents: list[str] = []
+        self._task = dict(zip(self.possible_agents, self.tasks))
+        self.observation_spaces = {a: t.observation_space for a, t in self._task.items()}
+        self.action_spaces = {a: t.action_space for a, t in self._task.items()}
+        self._cmd = np.zeros((n_robots, 3))
+        self._planning = np.full(n_robots, math.nan)
+        self._override: dict[str, float] = {}
+        self._np_random: np.random.Generator | None = None
+        self._steps, self._episode = 0, 0
+        self._token, self._seed = uuid.uuid4().hex[:8], None
+        self._renderer = None
+
+    # ------------------------------------------------------------------ spaces
+    def observation_space(self, agent: str) -> gym.Space:
+        return self.observation_spaces[agent]
+
+    def action_space(self, agent: str) -> gym.Space:
+        return self.action_spaces[agent]
+
+    # ------------------------------------------------------------------ API
+    def reset(
+        self, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
+        if seed is not None or self._np_random is None:
+            self._np_random, _ = seeding.np_random(seed)
+        self._seed = seed
+        layout = episode_layout(self.scenario, self._np_random, options, self.n_robots,
+                                strict=False)  # fmt: skip
+        self.sim.reset(layout, self._np_random)
+        self._steps = 0
+        self._episode += 1
+        self.agents = self.possible_agents[:]
+        observations, infos = {}, {}
+        for agent, task in self._task.items():
+            observations[agent], infos[agent] = task.reset()
+        if self.render_mode == "human":
+            self.render()
+        self._last_return = time.perf_counter()
+        return observations, infos
+
+    def step(self, actions: Mapping[str, Any]) -> tuple[
+        dict[str, Any], dict[str, float], dict[str, bool], dict[str, bool], dict[str, dict]
+    ]:  # fmt: skip
+        started = time.perf_counter()
+        if not self.agents:
+            raise gym.error.ResetNeeded(
+                "call reset() before step(): no episode has started" if self._episode == 0
+                else "every agent has left the episode; call reset() before step()"
+            )  # fmt: skip
+        missing = [a for a in self.agents if a not in actions]
+        if missing:
+            raise ValueError(f"no action for {', '.join(missing)}; every agent in `agents` "
+                             f"acts each step")  # fmt: skip
+        unknown = [a for a in actions if a not in self.agents]
+        if unknown:
+            raise ValueError(f"actions for agents not in the episode: {', '.join(unknown)}")
+        self._cmd[:] = 0.0
+        self._planning[:] = math.nan
+        wall = started - self._last_return
+        for agent in self.agents:
+            task = self._task[agent]
+            task.decode(actions[agent], self._cmd[task.robot])
+            self._planning[task.robot] = self._override.pop(agent, wall)
+        self._override.clear()
+        self.sim.step(self._cmd, self._planning)
+        self._steps += 1
+        time_up = out_of_time(self.sim, self._steps, self.max_steps)
+        obs, rewards, terms, truncs, infos = {}, {}, {}, {}, {}
+        for agent in self.agents:
+            task = self._task[agent]
+            obs[agent], rewards[agent], terms[agent], infos[agent] = task.step()
+            truncs[agent] = time_up and not terms[agent]
+            if terms[agent] or truncs[agent]:
+                task.finish(infos[agent], self.episode_name(task.robot))
+        self.agents = [a for a in self.agents if not (terms[a] or truncs[a])]
+        if self.render_mode == "human":
+            self.render()
+        self._last_return = time.perf_counter()
+        return obs, rewards, terms, truncs, infos
+
+    def set_planning_time(self, seconds: Mapping[str, float] | float) -> None:
+        """Use these planner computation times for the next step instead of the measured
+        wall time: one number for every agent, or a mapping from agent to seconds."""
+        times = seconds if isinstance(seconds, Mapping) else dict.fromkeys(self.agents, seconds)
+        for agent, value in times.items():
+            if agent not in self._task:
+                raise ValueError(f"unknown agent {agent!r}")
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"planning time must be a finite number >= 0, got {value!r}")
+            self._override[agent] = float(value)
+
+    def render(self) -> NDArray[np.uint8] | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; set render_mode at creation")
+            return None
+        if self._renderer is None:
+            from srpb_gym.render import Renderer
+
+            self._renderer = Renderer(self.render_mode, fps=self.metadata["render_fps"])
+        shown = self._task[self.agents[0]] if self.agents else self.tasks[0]
+        return self._renderer.render(self.sim, shown.robot, shown.running_metrics())
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None
+
+    def knowledge(self, agent: str) -> Knowledge:
+        """What ``agent``'s robot knows now, for classical planners (never the ground truth)."""
+        return self._task[agent].knowledge()
+
+    def episode_name(self, robot: int) -> str:
+        """File stem of robot ``robot``'s current episode (see :class:`SRPBNavEnv`), with
+        ``_robot<r>`` when there are several robots."""
+        base = (f"{self.scenario.name}_seed{self._seed}" if self._seed is not None
+                else f"{self.scenario.name}_{self._token}_{self._episode:05d}")  # fmt: skip
+        return base if self.n_robots == 1 else f"{base}_robot{robot}"
+
+
+def _robot_spec(scenario: Any, robot: int, n_robots: int) -> Any:
+    """The scenario's entry for robot ``robot``: ``robot`` alone, else ``robots[i]``."""
+    return scenario.robot_specs(n_robots)[robot]
+
+
+def parallel_env(**kwargs: Any) -> SRPBParallelEnv:
+    """The parallel environment (see :class:`SRPBParallelEnv` for the arguments)."""
+    return SRPBParallelEnv(**kwargs)
+
+
+def raw_env(**kwargs: Any) -> AECEnv:
+    """The AEC version through PettingZoo's own conversion, unwrapped."""
+    return conversions.parallel_to_aec(parallel_env(**kwargs))
+
+
+def env(**kwargs: Any) -> AECEnv:
+    """The AEC version with PettingZoo's order-enforcing wrapper."""
+    return wrappers.OrderEnforcingWrapper(raw_env(**kwargs))
