@@ -8,7 +8,7 @@ Usage::
                   [--planner-param NAME.FIELD=VALUE ...] [--policy PATH ...]
                   [--policy-algo ALGO] [--vecnormalize FILE|none] [--episodes N] [--seed S]
                   [--out DIR] [--resume] [--workers N] [--warmup STEPS] [--video [K]]
-                  [--semantics S] [--preset P]
+                  [--robots N] [--semantics S] [--preset P]
     srpb-gym compare DIR [DIR ...] [--out DIR] [--separate]
     srpb-gym --version
 
@@ -307,6 +307,10 @@ def add_eval_command(subparsers: Any) -> None:
                    )  # fmt: skip
     p.add_argument("--video", type=int, nargs="?", const=1, default=0, metavar="K",
                    help="film the first K episodes of each pair (default K: 1)")  # fmt: skip
+    p.add_argument("--robots", type=int, default=1, metavar="N",
+                   help="robots per episode (default: 1). N > 1 runs the multi-robot "
+                        "(PettingZoo) environment: a planner instance per robot, a --policy "
+                        "shared by all; results per robot and pooled")  # fmt: skip
     p.add_argument("--semantics", choices=SEMANTICS, default="paper",
                    help="metric semantics (default: paper)")  # fmt: skip
     p.add_argument("--preset", choices=tuple(PRESETS), default="paper",
@@ -337,6 +341,7 @@ def run_eval(args: argparse.Namespace) -> int:
         workers=args.workers, video=args.video, semantics=args.semantics, preset=args.preset,
         planner_settings=planner_settings(args.planner_config, args.planner_param),
         argv=getattr(args, "argv", ()), warmup=args.warmup, resume=args.resume, log=_stderr,
+        robots=args.robots,
     )  # fmt: skip
     try:
         outcome = run_evaluation(config, log=_stderr)
@@ -346,7 +351,7 @@ def run_eval(args: argparse.Namespace) -> int:
     if outcome.text:
         print(outcome.text)
     if outcome.interrupted:
-        print(f"{PROG}: interrupted: {len(outcome.results)} of {outcome.planned} episodes "
+        print(f"{PROG}: interrupted: {outcome.finished} of {outcome.planned} episodes "
               f"finished; results so far in {config.out} (--resume continues)",
               file=sys.stderr)  # fmt: skip
         return 130
@@ -363,10 +368,10 @@ def add_compare_command(subparsers: Any) -> None:
         description=(
             "Merge the episodes.csv of earlier `srpb-gym eval` runs into one table per "
             "scenario. A planner present in several runs is labelled PLANNER@RUN_FOLDER. "
-            "Runs made with different --semantics, --preset or metric parameters (read from "
-            "each run's config.json) are refused unless --separate keeps them apart. A cell "
-            "over fewer episodes than the 'episodes' row (undefined values left out) says "
-            "so: (n=18/20)."
+            "Runs made with different --semantics, --preset, metric parameters or --robots "
+            "(read from each run's config.json) are refused unless --separate keeps them "
+            "apart. A cell over fewer episodes than the 'episodes' row (undefined values "
+            "left out) says so: (n=18/20)."
         ),
     )
     p.add_argument("dirs", metavar="DIR", nargs="+", help="evaluation folder (or episodes.csv)")

@@ -1,10 +1,10 @@
 """Comparing earlier evaluation runs: their ``episodes.csv`` merged into one table per scenario.
 
 Runs are compared only when their figures mean the same: each run's ``config.json`` (beside
-its ``episodes.csv``) gives the metric semantics, the parameter preset and every scenario's
-metric parameters, and runs that differ in any of them (or whose settings are unknown) are
-refused, naming the differing keys, unless ``separate`` keeps them apart as columns of
-their own (``planner@run``) with a note of each run's settings.
+its ``episodes.csv``) gives the metric semantics, the parameter preset, every scenario's
+metric parameters and the robots per episode, and runs that differ in any of them (or whose
+settings are unknown) are refused, naming the differing keys, unless ``separate`` keeps them
+apart as columns of their own (``planner@run``) with a note of each run's settings.
 """
 
 from __future__ import annotations
@@ -33,13 +33,14 @@ class Run:
 
 
 def run_settings(config: Any) -> dict[str, Any] | None:
-    """``{"semantics", "preset", "metric_params": {env: params}}`` of a run's
-    ``config.json`` content, or ``None`` when it does not say them."""
+    """``{"semantics", "preset", "robots", "metric_params": {env: params}}`` of a run's
+    ``config.json`` content (``robots`` absent: 1), or ``None`` when it does not say them."""
     if not isinstance(config, dict) or not {"semantics", "preset"} <= set(config):
         return None
     envs = config.get("envs") if isinstance(config.get("envs"), list) else []
     params = {e["id"]: e.get("metric_params") for e in envs if isinstance(e, dict) and "id" in e}
-    return {"semantics": config["semantics"], "preset": config["preset"], "metric_params": params}
+    return {"semantics": config["semantics"], "preset": config["preset"],
+            "robots": config.get("robots", 1), "metric_params": params}  # fmt: skip
 
 
 def load_run(path: str) -> Run:
@@ -56,9 +57,10 @@ def load_run(path: str) -> Run:
 
 
 def settings_differences(a: dict[str, Any], b: dict[str, Any]) -> list[tuple[str, Any, Any]]:
-    """Differing keys of two runs' settings: semantics, preset, and the metric parameters
-    of the scenarios both ran (``metric_params.<env>.<name>``)."""
-    diffs = [(k, a[k], b[k]) for k in ("semantics", "preset") if a[k] != b[k]]
+    """Differing keys of two runs' settings: semantics, preset, robots, and the metric
+    parameters of the scenarios both ran (``metric_params.<env>.<name>``)."""
+    keys = ("semantics", "preset", "robots")
+    diffs = [(k, a.get(k, 1), b.get(k, 1)) for k in keys if a.get(k, 1) != b.get(k, 1)]
     common = [env for env in a["metric_params"] if env in b["metric_params"]]
     for env in common:
         diffs += differences(a["metric_params"][env], b["metric_params"][env],
@@ -92,7 +94,8 @@ def _check_settings(runs: list[Run], separate: bool) -> list[str]:
     for run in runs:
         s = run.settings
         what = ("settings unknown (no config.json)" if s is None
-                else f"semantics {s['semantics']}, preset {s['preset']}")  # fmt: skip
+                else f"semantics {s['semantics']}, preset {s['preset']}, robots "
+                     f"{s.get('robots', 1)}")  # fmt: skip
         notes.append(f"  {run.label}: {what}")
     notes += [f"  {p}" for p in problems if "other settings" in p]
     return notes
@@ -143,7 +146,8 @@ def _merged_config(runs: list[Run], notes: list[str]) -> dict[str, Any]:
     for run in runs:
         params |= (run.settings or {}).get("metric_params", {})
     envs = [{"id": env, "metric_params": p} for env, p in params.items()]
-    return doc | {"semantics": first["semantics"], "preset": first["preset"], "envs": envs}
+    return doc | {"semantics": first["semantics"], "preset": first["preset"],
+                  "robots": first.get("robots", 1), "envs": envs}  # fmt: skip
 
 
 def _label_planners(runs: list[Run], every: bool) -> list[EpisodeResult]:

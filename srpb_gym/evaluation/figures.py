@@ -50,8 +50,11 @@ def trajectory_plot(
     path: str,
     params: MetricParams | None = None,
     semantics: str = "paper",
+    people: Sequence[bool] | None = None,
 ) -> None:
-    """Draw the episodes ``records`` of one planner over the ``walls`` (S, 4) into ``path``."""
+    """Draw the episodes ``records`` of one planner over the ``walls`` (S, 4) into ``path``
+    (the people and O-spaces of the records whose ``people`` flag is set; default: all;
+    several robots of one episode: the paths of all, the people once)."""
     plt = pyplot()
     from matplotlib.collections import LineCollection
 
@@ -63,8 +66,9 @@ def trajectory_plot(
     t_max = max((float(r.robot_col("t")[-1]) for r in records if r.n_samples), default=1.0)
     norm = plt.Normalize(0.0, max(t_max, 1e-9))
     lines = None
-    for record in records:
-        _draw_people(ax, record, params or MetricParams(), semantics)
+    for i, record in enumerate(records):
+        if people is None or people[i]:
+            _draw_people(ax, record, params or MetricParams(), semantics)
         lines = _draw_path(ax, record, norm, LineCollection) or lines
     if lines is not None:
         fig.colorbar(lines, ax=ax, label="time [s]", location="bottom" if wide else "right",

@@ -4,9 +4,11 @@ An evaluation writes into its output folder ``config.json`` (the resolved config
 ``command.txt``, ``versions.json``, ``episodes.csv`` (a row per episode, written as each one
 finishes), ``episodes/<env id>/<planner>/`` (SRPB native logs and ``.npz`` records),
 ``summary.json``, ``table_<env>.md|.csv|.tex``, ``trajectories_<env>_<planner>.png``,
-``bars_<env>.png`` and, when asked, ``videos/``. With ``config.resume`` it continues the
-interrupted run in that folder (:mod:`srpb_gym.evaluation.outdir`): the finished episodes
-are kept, the others run, and the summary, tables and figures cover them all.
+``bars_<env>.png`` and, when asked, ``videos/``. A multi-robot run (``config.robots`` > 1)
+has a row per (episode, robot) and per-robot and pooled columns in its tables. With
+``config.resume`` it continues the interrupted run in that folder
+(:mod:`srpb_gym.evaluation.outdir`): the finished episodes are kept, the others run, and the
+summary, tables and figures cover them all.
 """
 
 from __future__ import annotations
@@ -51,6 +53,11 @@ class RunOutcome:
     def planned(self) -> int:
         return len(self.config.envs) * len(self.config.planners) * self.config.episodes
 
+    @property
+    def finished(self) -> int:
+        """Finished episodes (a multi-robot episode counts once, not once per robot)."""
+        return len({(r.env, r.planner, r.seed) for r in self.results})
+
 
 def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None) -> RunOutcome:
     """Run every episode of ``config`` and write every artifact into ``config.out``.
@@ -75,8 +82,8 @@ def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None)
         files, resolved = write_run_info(config)
         done, tasks = [], tasks_of(config)
     results: list[EpisodeResult] = list(done)
-    writer = stats.EpisodeWriter(os.path.join(out, "episodes.csv"), done)
-    bar = _progress(len(tasks))
+    writer = stats.EpisodeWriter(os.path.join(out, "episodes.csv"), done, config.robots > 1)
+    bar = _progress(len(tasks), config.robots)
     try:
         interrupted = run_tasks(config, tasks, lambda r: _record(r, results, writer, bar))
     finally:
@@ -84,8 +91,8 @@ def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None)
         bar.close()
     order = {(t.env, config.planners[t.planner].name, t.seed): i
              for i, t in enumerate(tasks_of(config))}  # fmt: skip
-    results.sort(key=lambda r: order[(r.env, r.planner, r.seed)])
-    stats.write_episodes(writer.path, results)
+    results.sort(key=lambda r: (order[(r.env, r.planner, r.seed)], r.robot or 0))
+    stats.write_episodes(writer.path, results, config.robots > 1)
     outcome = RunOutcome(config, results, interrupted, files=[*files, writer.path])
     outcome.files += _write_summary(outcome)
     if not interrupted and results:
@@ -97,16 +104,18 @@ def _record(result: EpisodeResult, results: list, writer: stats.EpisodeWriter, b
     results.append(result)
     writer.write(result)
     bar.set_postfix_str(f"{result.env} {result.planner}", refresh=False)
-    bar.update(1)
+    if result.robot is None or result.robot == 0:  # an episode, once for all its robots
+        bar.update(1)
 
 
-def _progress(total: int) -> Any:
+def _progress(total: int, robots: int = 1) -> Any:
     """A tqdm bar on stderr (a silent stand-in without tqdm)."""
     try:
         from tqdm import tqdm
     except ImportError:
         return _NoBar()
-    return tqdm(total=total, file=sys.stderr, unit="episode", desc="eval", dynamic_ncols=True)
+    desc = "eval" if robots == 1 else f"eval ({robots} robots)"
+    return tqdm(total=total, file=sys.stderr, unit="episode", desc=desc, dynamic_ncols=True)
 
 
 class _NoBar:
@@ -120,8 +129,10 @@ def _write_summary(outcome: RunOutcome) -> list[str]:
     config, out = outcome.config, outcome.config.out
     summary = stats.summarize(outcome.results)
     doc = {"interrupted": outcome.interrupted, "episodes_planned": outcome.planned,
-           "episodes_finished": len(outcome.results), "semantics": config.semantics,
+           "episodes_finished": outcome.finished, "semantics": config.semantics,
            "preset": config.preset, "results": summary}  # fmt: skip
+    if config.robots > 1:
+        doc = {"robots": config.robots, **doc}
     path = os.path.join(out, "summary.json")
     write_json(path, doc)
     outcome.text = stats.tables_text(summary)
@@ -158,7 +169,11 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
         entry = {"id": env_id, "scenario": base.scenario.name}
         if config.scenario_file(env_id) is not None:
             entry |= {"gym_id": spec.id, "scenario_file": config.scenario_file(env_id)}
-        envs.append(entry | {"kwargs": {**spec.kwargs, **config.env_kwargs(env_id)},
+        kwargs = {**spec.kwargs, **config.env_kwargs(env_id)}
+        if config.robots > 1:
+            entry["env"] = "srpb_gym.parallel_env"
+            kwargs["n_robots"] = config.robots
+        envs.append(entry | {"kwargs": kwargs,
                              "max_episode_steps": spec.max_episode_steps,
                              "metric_params": base.params.as_dict()})  # fmt: skip
         env.close()
@@ -173,6 +188,7 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
         "workers": config.workers,
         "warmup": {"steps": config.warmup, "seed": config.warmup_seed},
         "video": config.video,
+        "robots": config.robots,
         "out": config.out,
         "record_dirs": "episodes/<env id>/<planner>/",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
@@ -211,8 +227,10 @@ def draw_figures(
     for env_id, planners in stats.group(results).items():
         for planner, rows in planners.items():
             path = os.path.join(config.out, f"trajectories_{env_id}_{planner}.png")
-            _trajectories(config, envs[env_id], rows, f"{env_id}: {planner} ({len(rows)} "
-                          "episodes)", path)  # fmt: skip
+            count = f"{len(rows)} episodes"
+            if config.robots > 1:
+                count = f"{len({r.seed for r in rows})} episodes, {config.robots} robots"
+            _trajectories(config, envs[env_id], rows, f"{env_id}: {planner} ({count})", path)
             paths.append(path)
         summary = stats.summarize([r for rows in planners.values() for r in rows])[env_id]
         path = os.path.join(config.out, f"bars_{env_id}.png")
@@ -229,7 +247,8 @@ def _trajectories(config: EvalConfig, env: dict, rows: list, title: str, path: s
 
     records = [load_record(os.path.join(config.out, r.record)) for r in rows]
     walls = load_scenario(env.get("scenario_file") or env["scenario"]).walls
+    people = [not r.robot for r in rows]  # an episode's people once: as robot 0 saw them
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SRPBMetricWarning)
         figures.trajectory_plot(records, walls, title, path, MetricParams(**env["metric_params"]),
-                              config.semantics)  # fmt: skip
+                                config.semantics, people)  # fmt: skip

@@ -119,6 +119,7 @@ def check_resumable(config: EvalConfig, resolved: dict[str, Any], versions: dict
     now = json.loads(json.dumps(jsonable(resolved)))
     if not isinstance(stored, dict):
         raise InputError("not an evaluation configuration (not a JSON object)", path)
+    stored = {"robots": 1, **stored}  # runs made before --robots had one robot
     stored_cmp = {k: v for k, v in stored.items() if k not in RESUME_FREE}
     now_cmp = {k: v for k, v in now.items() if k not in RESUME_FREE}
     diffs = sorted(differences(stored_cmp, now_cmp), key=lambda d: len(_PATH.split(d[0])))
@@ -143,7 +144,9 @@ def finished_episodes(
     """The finished episodes of the run in ``config.out`` (rows of its ``episodes.csv``,
     checked: planned, each once, with its record on disk) and the tasks still to run.
 
-    An unfinished last line (a run killed while writing it) is dropped, with a note."""
+    An unfinished last line (a run killed while writing it) is dropped, with a note. In a
+    multi-robot run an episode is finished when the rows of all its robots are there (keyed
+    by episode and robot); an episode with some of them only runs again."""
     path = os.path.join(config.out, "episodes.csv")
     tasks = tasks_of(config)
     if not os.path.isfile(path):
@@ -156,17 +159,25 @@ def finished_episodes(
         text = kept + "\n" if kept else ""
     rows = stats.parse_episodes(text, path) if text else []
     planned = {(t.env, config.planners[t.planner].name, t.seed): t for t in tasks}
-    finished: dict[tuple[str, str, int], EpisodeResult] = {}
+    robots = list(range(config.robots)) if config.robots > 1 else [None]
+    finished: dict[tuple[str, str, int], dict[int | None, EpisodeResult]] = {}
     for line, row in enumerate(rows, start=2):
         key = (row.env, row.planner, row.seed)
-        if key not in planned:
-            raise InputError(f"episode {row.env} / {row.planner} / seed {row.seed} is not part "
-                             f"of this run's configuration", path, line)  # fmt: skip
-        record = config.record_path(*key)
+        if key not in planned or row.robot not in robots:
+            robot = "" if row.robot is None else f" / robot {row.robot}"
+            raise InputError(f"episode {row.env} / {row.planner} / seed {row.seed}{robot} is "
+                             f"not part of this run's configuration", path, line)  # fmt: skip
+        record = config.record_path(*key, row.robot)
         if not os.path.isfile(record):
             raise InputError(f"the record of this finished episode is missing: {record}",
                              path, line)  # fmt: skip
         row.record = os.path.relpath(record, config.out)
-        finished[key] = row
-    remaining = [t for key, t in planned.items() if key not in finished]
-    return list(finished.values()), remaining
+        finished.setdefault(key, {})[row.robot] = row
+    complete = {k: v for k, v in finished.items() if len(v) == len(robots)}
+    partial = len(finished) - len(complete)
+    if partial:
+        note(f"warning: {path}: {partial} episode(s) lack the rows of some robots; they run "
+             f"again")  # fmt: skip
+    remaining = [t for key, t in planned.items() if key not in complete]
+    done = [by_robot[r] for by_robot in complete.values() for r in robots]
+    return done, remaining

@@ -44,7 +44,8 @@ class Task:
 @dataclass
 class EpisodeResult:
     """One finished episode: its outcome and every SRPB metric (``info["srpb/<m>"]`` of
-    the last step). ``record``: the ``.npz`` record, relative to the output folder."""
+    the last step). ``record``: the ``.npz`` record, relative to the output folder.
+    ``robot``: the robot's index in a multi-robot episode, ``None`` in a single-robot run."""
 
     env: str
     planner: str
@@ -56,6 +57,7 @@ class EpisodeResult:
     steps: int = 0
     record: str = ""
     video: str = ""
+    robot: int | None = None
 
 
 def tasks_of(config: EvalConfig) -> list[Task]:
@@ -129,15 +131,20 @@ def warm_up(env: Any, planner: Planner, seed: int, steps: int) -> int:
 
 class Workspace:
     """The environments and planners of one process, built on first use (each planner
-    warmed up then: :func:`warm_up`) and reused."""
+    warmed up then: :func:`warm_up`) and reused. With ``config.robots`` > 1 a pair is a
+    PettingZoo environment and the planners of its agents (:mod:`.multi`)."""
 
     def __init__(self, config: EvalConfig) -> None:
         self.config = config
-        self._pairs: dict[tuple[str, int], tuple[Any, Planner]] = {}
+        self._pairs: dict[tuple[str, int], tuple[Any, Any]] = {}
 
-    def pair(self, env_id: str, planner: int) -> tuple[Any, Planner]:
+    def pair(self, env_id: str, planner: int) -> tuple[Any, Any]:
         """The environment and planner of one (env id, planner number) pair."""
         key = (env_id, planner)
+        if key not in self._pairs and self.config.robots > 1:
+            from srpb_gym.evaluation.multi import make_pair
+
+            self._pairs[key] = make_pair(self.config, env_id, planner)
         if key not in self._pairs:
             spec = self.config.planners[planner]
             env = self.config.make_env(env_id, spec.name)
@@ -151,8 +158,16 @@ class Workspace:
             self._pairs[key] = (env, built)
         return self._pairs[key]
 
-    def run(self, task: Task) -> EpisodeResult:
-        """Run one episode and return its result (writing its video if it is filmed)."""
+    def run(self, task: Task) -> list[EpisodeResult]:
+        """Run one episode and return its results, one per robot (writing its video if it
+        is filmed)."""
+        if self.config.robots > 1:
+            from srpb_gym.evaluation.multi import run_multi_task
+
+            return run_multi_task(self.config, self.pair(task.env, task.planner), task)
+        return [self._run_single(task)]
+
+    def _run_single(self, task: Task) -> EpisodeResult:
         env, planner = self.pair(task.env, task.planner)
         name = self.config.planners[task.planner].name
         video = None
@@ -193,7 +208,7 @@ def _init_worker(config: EvalConfig) -> None:
     _WORKSPACE = Workspace(config)
 
 
-def _run_in_worker(task: Task) -> EpisodeResult:
+def _run_in_worker(task: Task) -> list[EpisodeResult]:
     assert _WORKSPACE is not None, "worker not initialised"
     return _WORKSPACE.run(task)
 
@@ -206,14 +221,16 @@ def _context() -> Any:
 def run_tasks(
     config: EvalConfig, tasks: Sequence[Task], on_result: Callable[[EpisodeResult], None]
 ) -> bool:
-    """Run ``tasks`` (``config.workers`` processes), calling ``on_result`` as each episode
-    finishes. Returns ``True`` if interrupted (Ctrl-C); files of unfinished episodes are
-    then removed, so what is on disk is exactly the finished episodes."""
+    """Run ``tasks`` (``config.workers`` processes), calling ``on_result`` with each result
+    (each robot's, in robot order) as its episode finishes. Returns ``True`` if interrupted
+    (Ctrl-C); files of unfinished episodes are then removed, so what is on disk is exactly
+    the finished episodes."""
     done: set[Task] = set()
 
-    def finish(task: Task, result: EpisodeResult) -> None:
+    def finish(task: Task, results: list[EpisodeResult]) -> None:
         done.add(task)
-        on_result(result)
+        for result in results:
+            on_result(result)
 
     try:
         if config.workers == 1 or len(tasks) == 1:

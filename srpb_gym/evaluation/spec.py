@@ -87,7 +87,8 @@ class EvalConfig:
     ``scenario_files`` ((label, file path) pairs). ``warmup``: untimed control steps of
     each planner before its first timed episode in each process (0: none). ``resume``:
     continue the run in ``out``. ``notes``: warnings and notes of the resolution
-    (one line each, e.g. ``"warning: ..."``)."""
+    (one line each, e.g. ``"warning: ..."``). ``robots``: robots per episode; more than
+    one runs the PettingZoo environment (:meth:`make_parallel`), one the Gymnasium one."""
 
     envs: tuple[str, ...]
     planners: tuple[PlannerSpec, ...]
@@ -103,6 +104,7 @@ class EvalConfig:
     warmup: int = DEFAULT_WARMUP
     resume: bool = False
     notes: tuple[str, ...] = ()
+    robots: int = 1
 
     @property
     def seeds(self) -> list[int]:
@@ -130,10 +132,11 @@ class EvalConfig:
         """The scenario's name, which the episode files are named after."""
         return SCENARIO_IDS[env] if self.scenario_file(env) is None else env
 
-    def record_path(self, env: str, planner: str, seed: int) -> str:
-        """The ``.npz`` record of one episode."""
-        stem = f"{self.scenario_name(env)}_seed{seed}.npz"
-        return os.path.join(self.record_dir(env, planner), stem)
+    def record_path(self, env: str, planner: str, seed: int, robot: int | None = None) -> str:
+        """The ``.npz`` record of one episode (of robot ``robot`` in a multi-robot run)."""
+        stem = f"{self.scenario_name(env)}_seed{seed}"
+        stem += "" if robot is None else f"_robot{robot}"
+        return os.path.join(self.record_dir(env, planner), f"{stem}.npz")
 
     def env_kwargs(
         self, env_id: str, planner: str | None = None, *, render: bool = True
@@ -154,6 +157,15 @@ class EvalConfig:
         import gymnasium as gym
 
         return gym.make(self.gym_id(env_id), **self.env_kwargs(env_id, planner, render=render))
+
+    def make_parallel(self, env_id: str, planner: str | None = None, *, render: bool = True) -> Any:
+        """A new PettingZoo environment with :attr:`robots` robots for the label ``env_id``,
+        made with the same arguments as :meth:`make_env`."""
+        from srpb_gym.pettingzoo_env import parallel_env
+
+        kwargs = {"scenario": self.scenario_name(env_id)}
+        kwargs |= self.env_kwargs(env_id, planner, render=render)
+        return parallel_env(n_robots=self.robots, **kwargs)
 
 
 def default_out(now: float | None = None) -> str:
@@ -185,6 +197,7 @@ def resolve_config(
     warmup: int = DEFAULT_WARMUP,
     resume: bool = False,
     log: Callable[[str], None] | None = stderr_log,
+    robots: int = 1,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
     planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
@@ -197,8 +210,9 @@ def resolve_config(
     from each file); ``vecnormalize``: ``"auto"`` (look where training puts it), a file or
     ``None`` (raw observations). ``workers`` is capped at ``os.cpu_count()`` and at the
     number of episodes, with a warning. ``resume``: continue the run in ``out`` (see
-    :mod:`srpb_gym.evaluation.outdir`). ``log`` receives each note and warning as it is
-    made (they are also kept in ``notes``).
+    :mod:`srpb_gym.evaluation.outdir`). ``robots``: robots per episode, at most what every
+    scenario places (else an error naming the limit, key ``--robots``). ``log`` receives
+    each note and warning as it is made (they are also kept in ``notes``).
     """
     from srpb_gym.evaluation.outdir import check_out_dir
     from srpb_gym.evaluation.policies import policy_specs
@@ -218,6 +232,7 @@ def resolve_config(
     if preset not in PRESETS:
         raise InputError(f"choose one of: {', '.join(PRESETS)}", key="--preset")
     env_ids, files = resolve_envs(envs or DEFAULT_ENVS)
+    _check_robots(robots, env_ids, dict(files))
     if planners is None and not policies:
         planners = list(PLANNERS)
     settings = check_settings(planner_settings or {})
@@ -232,7 +247,7 @@ def resolve_config(
     out = check_out_dir(out or default_out(), resume=resume)
     return EvalConfig(tuple(env_ids), tuple(specs), episodes, seed, out, workers, video,
                       semantics, preset, tuple(argv), tuple(files), warmup, resume,
-                      tuple(notes))  # fmt: skip
+                      tuple(notes), robots)  # fmt: skip
 
 
 def resolve_envs(items: Sequence[str]) -> tuple[list[str], list[tuple[str, str]]]:
@@ -263,6 +278,21 @@ def resolve_envs(items: Sequence[str]) -> tuple[list[str], list[tuple[str, str]]
         labels.append(label)
         files.append((label, path))
     return labels, files
+
+
+def _check_robots(robots: int, env_ids: Sequence[str], files: Mapping[str, str]) -> None:
+    """Refuse ``robots`` below 1 or above what a scenario places (naming its limit)."""
+    from srpb_gym.scenarios import load_scenario
+
+    if isinstance(robots, bool) or not isinstance(robots, int) or robots < 1:
+        raise InputError(f"must be at least 1, got {robots}", key="--robots")
+    for env in env_ids:
+        try:
+            load_scenario(files.get(env, SCENARIO_IDS.get(env, env))).robot_specs(robots)
+        except InputError as exc:
+            if exc.key != "n_robots":
+                raise
+            raise InputError(exc.message, files.get(env), key="--robots") from None
 
 
 def _check_counts(episodes: int, workers: int, video: int, warmup: int) -> None:

@@ -2,10 +2,13 @@
 
 ``episodes.csv`` holds one row per episode: ``env``, ``planner``, ``seed``, ``is_success``,
 ``collision``, ``timeout`` (0/1), then every metric of :data:`METRIC_NAMES` at full
-precision (``repr`` of the float, ``nan`` when undefined). The tables follow the SRPB
-paper's Table 4: one per scenario, rows = metrics with units (after the episode count and
-the success, collision and timeout rates in %), columns = planners, cells = median over the
-episodes with the interquartile range, ``12.3 [10.1-14.0]``.
+precision (``repr`` of the float, ``nan`` when undefined). A multi-robot run has one row
+per (episode, robot), with a ``robot`` column (the robot's index) after ``seed``. The
+tables follow the SRPB paper's Table 4: one per scenario, rows = metrics with units (after
+the episode count and the success, collision and timeout rates in %), columns = planners,
+cells = median over the episodes with the interquartile range, ``12.3 [10.1-14.0]``. In a
+multi-robot run each planner has a column per robot (``dwa/robot_0``, ...) and a pooled
+column (``dwa/pooled``: every robot's episodes together).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import csv
 import io
 import math
 import os
+from collections import Counter
 from collections.abc import Iterable, Sequence
 from typing import Any
 
@@ -26,6 +30,9 @@ from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
 CSV_COLUMNS: tuple[str, ...] = (
     "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES,
 )  # fmt: skip
+ROBOT_COLUMNS: tuple[str, ...] = (*CSV_COLUMNS[:3], "robot", *CSV_COLUMNS[3:])
+"""The columns of a multi-robot run's ``episodes.csv``."""
+POOLED = "pooled"
 OUTCOMES: tuple[tuple[str, str], ...] = (
     ("success", "is_success"), ("collision", "collision"), ("timeout", "timeout"),
 )  # fmt: skip
@@ -35,38 +42,46 @@ Summary = dict[str, dict[str, dict[str, Any]]]
 
 
 # ---------------------------------------------------------------------------- CSV
-def csv_row(result: EpisodeResult) -> list[str]:
-    """The ``episodes.csv`` row of one episode."""
+def csv_row(result: EpisodeResult, robots: bool = False) -> list[str]:
+    """The ``episodes.csv`` row of one episode (with its ``robot`` column when ``robots``;
+    empty for a single-robot row)."""
     flags = [str(int(v)) for v in (result.is_success, result.collision, result.timeout)]
     values = [repr(float(result.metrics[m])) for m in METRIC_NAMES]
-    return [result.env, result.planner, str(result.seed), *flags, *values]
+    robot = ["" if result.robot is None else str(result.robot)] if robots else []
+    return [result.env, result.planner, str(result.seed), *robot, *flags, *values]
 
 
 class EpisodeWriter:
     """``episodes.csv``, one row appended and flushed as each episode finishes; it starts
-    with the header and the rows ``done`` (episodes finished earlier, when resuming)."""
+    with the header and the rows ``done`` (episodes finished earlier, when resuming).
+    ``robots``: write the ``robot`` column (a multi-robot run)."""
 
-    def __init__(self, path: str, done: Iterable[EpisodeResult] = ()) -> None:
+    def __init__(self, path: str, done: Iterable[EpisodeResult] = (), robots: bool = False):
         self.path = path
-        write_episodes(path, done)
+        self.robots = robots
+        write_episodes(path, done, robots)
         self._file = open(path, "a", newline="", encoding="utf-8")  # noqa: SIM115
         self._csv = csv.writer(self._file)
 
     def write(self, result: EpisodeResult) -> None:
-        self._csv.writerow(csv_row(result))
+        self._csv.writerow(csv_row(result, self.robots))
         self._file.flush()
 
     def close(self) -> None:
         self._file.close()
 
 
-def write_episodes(path: str, results: Iterable[EpisodeResult]) -> None:
-    """Write ``episodes.csv`` at once (replacing the file atomically)."""
+def write_episodes(path: str, results: Iterable[EpisodeResult], robots: bool | None = None) -> None:
+    """Write ``episodes.csv`` at once (replacing the file atomically); with the ``robot``
+    column when ``robots`` (``None``: when a row has a robot)."""
+    results = list(results)
+    if robots is None:
+        robots = any(r.robot is not None for r in results)
     tmp = f"{path}.tmp"
     with open(tmp, "w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
-        writer.writerow(CSV_COLUMNS)
-        writer.writerows(csv_row(r) for r in results)
+        writer.writerow(ROBOT_COLUMNS if robots else CSV_COLUMNS)
+        writer.writerows(csv_row(r, robots) for r in results)
     os.replace(tmp, path)
 
 
@@ -102,8 +117,9 @@ def read_episodes(path: str) -> list[EpisodeResult]:
 
 def parse_episodes(text: str, path: str) -> list[EpisodeResult]:
     """The rows of ``episodes.csv`` text read from ``path``: every row checked (its number
-    of values, 0/1 flags, an integer seed, numbers, each episode once); a metric column
-    the file lacks reads as not computed (NaN). :class:`InputError` names file and line."""
+    of values, 0/1 flags, an integer seed (and robot), numbers, each (episode, robot)
+    once); a metric column the file lacks reads as not computed (NaN), an empty ``robot``
+    as a single-robot row. :class:`InputError` names file and line."""
     reader = csv.reader(io.StringIO(text, newline=""))
     rows: list[tuple[int, list[str]]] = []
     try:
@@ -120,15 +136,16 @@ def parse_episodes(text: str, path: str) -> list[EpisodeResult]:
                          f"file?", path, line=1)  # fmt: skip
     col = {name: i for i, name in enumerate(header)}
     out: list[EpisodeResult] = []
-    seen: dict[tuple[str, str, int], int] = {}
+    seen: dict[tuple[str, str, int, int | None], int] = {}
     for line, row in rows[1:]:
         if not row:
             continue
         result = _parse_row(row, col, path, line)
-        key = (result.env, result.planner, result.seed)
+        key = (result.env, result.planner, result.seed, result.robot)
         if key in seen:
-            raise InputError(f"episode {key[0]} / {key[1]} / seed {key[2]} is listed twice "
-                             f"(also on line {seen[key]})", path, line)  # fmt: skip
+            robot = "" if result.robot is None else f" / robot {result.robot}"
+            raise InputError(f"episode {key[0]} / {key[1]} / seed {key[2]}{robot} is listed "
+                             f"twice (also on line {seen[key]})", path, line)  # fmt: skip
         seen[key] = line
         out.append(result)
     return out
@@ -158,7 +175,11 @@ def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> Epi
     env, planner = row[col["env"]], row[col["planner"]]
     if not env or not planner:
         raise InputError("empty env or planner", path, line)
-    return EpisodeResult(env, planner, seed, *flags, metrics)
+    robot = row[col["robot"]].strip() if "robot" in col else ""
+    if robot and not (robot.isdigit() and robot.isascii()):
+        raise InputError(f"column robot is {robot!r}, expected a robot index (0, 1, ...)",
+                         path, line)  # fmt: skip
+    return EpisodeResult(env, planner, seed, *flags, metrics, robot=int(robot) if robot else None)
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -185,17 +206,37 @@ def describe(values: Sequence[float]) -> dict[str, float | int | None]:
 
 def summarize(results: Iterable[EpisodeResult]) -> Summary:
     """Per env and planner: ``episodes``, ``success_rate``, ``collision_rate``,
-    ``timeout_rate`` (%) and ``metrics`` (name -> :func:`describe`)."""
+    ``timeout_rate`` (%) and ``metrics`` (name -> :func:`describe`).
+
+    A planner whose rows are of several robots gets an entry per robot,
+    ``<planner>/robot_<r>``, and a pooled one, ``<planner>/pooled`` (every robot's
+    episodes together: ``episodes`` counts robot-episodes); these entries also hold
+    ``planner`` and ``robot`` (the index, or ``"pooled"``)."""
     summary: Summary = {}
     for env, planners in group(results).items():
         summary[env] = {}
         for planner, rows in planners.items():
-            entry: dict[str, Any] = {"episodes": len(rows)}
-            for label, attr in OUTCOMES:
-                entry[f"{label}_rate"] = 100.0 * sum(getattr(r, attr) for r in rows) / len(rows)
-            entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
-            summary[env][planner] = entry
+            robots = sorted({r.robot for r in rows if r.robot is not None})
+            if not robots:
+                summary[env][planner] = _entry(rows)
+                continue
+            for robot in robots:
+                mine = [r for r in rows if r.robot == robot]
+                summary[env][f"{planner}/robot_{robot}"] = _entry(mine, planner, robot)
+            summary[env][f"{planner}/{POOLED}"] = _entry(rows, planner, POOLED)
     return summary
+
+
+def _entry(
+    rows: Sequence[EpisodeResult], planner: str | None = None, robot: int | str | None = None
+) -> dict[str, Any]:
+    entry: dict[str, Any] = {"episodes": len(rows)}
+    if planner is not None:
+        entry |= {"planner": planner, "robot": robot}
+    for label, attr in OUTCOMES:
+        entry[f"{label}_rate"] = 100.0 * sum(getattr(r, attr) for r in rows) / len(rows)
+    entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
+    return entry
 
 
 # ---------------------------------------------------------------------------- tables
@@ -297,9 +338,15 @@ def _blank(value: float | None) -> Any:
 
 
 def title_of(env: str, planners: dict[str, dict[str, Any]]) -> str:
-    counts = sorted({p["episodes"] for p in planners.values()})
-    episodes = "/".join(map(str, counts))
-    return f"{env}: median [interquartile range] over {episodes} episodes per planner"
+    robots = [p for p in planners.values() if isinstance(p.get("robot"), int)]
+    if not robots:
+        counts = sorted({p["episodes"] for p in planners.values()})
+        episodes = "/".join(map(str, counts))
+        return f"{env}: median [interquartile range] over {episodes} episodes per planner"
+    counts = "/".join(map(str, sorted({p["episodes"] for p in robots})))
+    n = "/".join(map(str, sorted(set(Counter(p["planner"] for p in robots).values()))))
+    return (f"{env}, {n} robots: median [interquartile range] over {counts} episodes per "
+            f"robot; {POOLED}: all robots' episodes together")  # fmt: skip
 
 
 def tables_text(summary: Summary) -> str:
