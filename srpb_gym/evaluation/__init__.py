@@ -15,12 +15,14 @@ Planner settings are plain data, ``{planner name: {field: value}}`` (see
 Episode ``i`` uses ``env.reset(seed=seed + i)``, so any episode can be replayed alone; the
 planner's ``act`` is timed and its time handed to ``env.unwrapped.set_planning_time``
 (:func:`run_episode`, the one episode loop, also used by the benchmark and the tuning
-script), after an untimed warm-up of every planner in every process; runs spread over
-worker processes give the same episodes. An interrupted run resumes in its own folder
-(``resume=True``); runs made with different metric settings are not merged silently.
-See ``docs/evaluation.md``. ``srpb-gym eval`` and
-``srpb-gym compare`` are the command-line front ends. matplotlib, torch, stable-baselines3
-and pygame are imported only by the functions that need them.
+script), after an untimed warm-up of every planner in every process; runs spread over worker
+processes give the same episodes. With ``robots=N`` (N > 1) every episode runs in the
+PettingZoo environment with N robots (:mod:`srpb_gym.evaluation.multi`): a row per (episode,
+robot) and per-robot and pooled table columns. An interrupted run resumes in its own folder
+(``resume=True``); runs made with different metric settings are not merged silently. See
+``docs/evaluation.md``. ``srpb-gym eval`` and ``srpb-gym compare`` are the command-line
+front ends. matplotlib, torch, stable-baselines3 and pygame are imported only by the
+functions that need them.
 """
 
 from srpb_gym.evaluation.compare import compare_runs
