@@ -135,6 +135,10 @@ class Lidar:
         self.arrays = (self.angles, self._beam_dirs, params, self._noise, self.true_ranges,
                        self._out)  # fmt: skip
 
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)  # a copied array is writeable again
+        self.angles.setflags(write=False)
+
     def draw(self, rng: np.random.Generator | None) -> None:
         """Draw the range noise of the next scan (``n_beams`` standard normals from ``rng``,
         none without noise)."""

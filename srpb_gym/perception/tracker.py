@@ -187,21 +187,36 @@ class KalmanTracker:
         self._cnt = np.zeros(5, dtype=np.int64)
         self._scratch = np.zeros((4, 4))
         self._pairs = np.zeros((2, cap), np.int64)  # solver output: rows, columns
+        self._bind()
+        self._reserve(cap)
+        self.reset()
+
+    # derived from the state arrays: argument tuples and read-only views
+    _DERIVED = ("arrays", "_state", "_ro_x", "_ro_P", "_ro_f", "_ro_i", "_ro_matched")
+
+    def _bind(self) -> None:
+        """The argument tuples and read-only views of the state arrays (at construction and
+        after a copy or unpickling, where a copied view would no longer follow its array)."""
         #: the state arrays (x, P, f, iv, cnt, cfg) for compiled readers; see
         #: :mod:`srpb_gym.perception.kalman` for their layout
         self.arrays = (self._x, self._P, self._f, self._i, self._cnt, self._cfg)
-        self._reserve(cap)
+        self._state = (self._x, self._P, self._f, self._i, self._matched)
         views = [a.view() for a in (self._x, self._P, self._f, self._i, self._matched)]
         for v in views:
             v.flags.writeable = False
         self._ro_x, self._ro_P, self._ro_f, self._ro_i, self._ro_matched = views
-        self.reset()
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind()
 
     def _reserve(self, detections: int) -> None:
         """Size the per-detection workspace for ``detections`` detections."""
         cap = self._x.shape[0]
         self._dcap = detections
-        self._state = (self._x, self._P, self._f, self._i, self._matched)
         self._work = (self._cfg, self._cnt, np.zeros((cap, detections)), self._wt,
                       np.zeros((3, detections), dtype=np.int64), np.zeros(cap * detections),
                       self._scratch, self._pairs)  # fmt: skip

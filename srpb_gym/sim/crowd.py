@@ -148,6 +148,15 @@ class Crowd:
         self._set_walkers(people)
         self._set_formations(formations, len(people))
         self._leg_from = self._pos.copy()
+        self._bind()
+
+    # the arrays derived from the state ones: kernel argument tuples and read-only views
+    _DERIVED = ("_step_args", "_sync_args", "position", "velocity", "yaw", "radius", "state",
+                "walking_group", "formation_of", "formation_centers")  # fmt: skip
+
+    def _bind(self) -> None:
+        """The kernels' argument tuples and the public read-only views of the state arrays
+        (after :meth:`reset` and after a copy or unpickling)."""
         # the crowd's arrays as the kernels take them (after the time step, walls and robots)
         self._step_args = (self._pos, self._vel, self._yaw, self._radius, self._props,
                            self._links, self._cursor, self._state, self._route, self._anchor,
@@ -161,6 +170,14 @@ class Crowd:
         self.walking_group = _readonly(np.ascontiguousarray(self._links[:, GROUP]))
         self.formation_of = _readonly(np.ascontiguousarray(self._links[:, FORMATION]))
         self.formation_centers = _readonly(self._fcenter)
+
+    def __getstate__(self) -> dict[str, Any]:
+        # a copied view would no longer follow its array: the views are rebuilt
+        return {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind()
 
     def _set_walkers(self, people: Sequence[PersonLayout]) -> None:
         ids = [p.group for p in people]

@@ -21,6 +21,7 @@ has its own handler that knows which robots and which kind of contact it reports
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -62,7 +63,7 @@ class World:
             seg.collision_type, seg.friction, seg.elasticity = WALL, 0.0, 0.0
             space.add(seg)
         self.n_robots, self.n_people = len(robots), int(people_xy.shape[0])
-        self._robot_bodies, self._controls = [], []
+        self._robot_bodies, self._controls, self._joints = [], [], []
         for i, (cfg, pose) in enumerate(robots):
             self._add_robot(i, cfg, pose)
         self._people_bodies = [self._add_person(p, r) for p, r in zip(people_xy, people_radius)]
@@ -91,6 +92,7 @@ class World:
         self.space.add(body, shape, control, pivot, gear)
         self._robot_bodies.append(body)
         self._controls.append(control)
+        self._joints.append((pivot, gear))
 
     def _add_person(self, xy: NDArray[np.float64], radius: float) -> pymunk.Body:
         body = pymunk.Body(PERSON_MASS, float("inf"))
@@ -130,17 +132,30 @@ class World:
         self.people_xy = state[people, :2]
         self.people_velocity = state[people, 3:5]
 
+    # what _init_batch derives from the space: the batch buffers (C data bound to the
+    # bodies, whose ids change in a copy), the body rows and the views of ``state`` (a
+    # copied view would no longer follow the array)
+    _DERIVED = ("_n_bodies", "_robot_rows", "_control_rows", "_people_rows", "_velocities",
+                "_calls", "state", "_views", "_robot_index", "_people_index", "robot_pose",
+                "people_xy", "people_velocity")  # fmt: skip
+
     def __getstate__(self) -> dict:
-        # the batch buffers are C data: rebuilt after unpickling (body ids change too)
-        state = self.__dict__.copy()
-        state.pop("_calls", None)
+        # pymunk copies and pickles the space with its bodies, contacts and collision
+        # handlers (their callbacks are this world's bound methods: the copy's own), but not
+        # the solver state that the next step starts from: kept here
+        state = {k: v for k, v in self.__dict__.items() if k not in self._DERIVED}
+        state["_solver"] = _solver_state(self._bodies(), self._joints)
         return state
 
     def __setstate__(self, state: dict) -> None:
-        collisions = state["collisions"].copy()
+        solver = state.pop("_solver", None)
         self.__dict__.update(state)
         self._init_batch()
-        self.collisions[:] = collisions
+        if solver is not None:
+            _solver_state(self._bodies(), self._joints, solver)
+
+    def _bodies(self) -> list[pymunk.Body]:
+        return [*self._robot_bodies, *self._controls, *self._people_bodies]
 
     def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple) -> None:
         robots, col = data  # every pair of collision types has its own handler
@@ -247,6 +262,100 @@ class _SpaceCalls:
         arr.num = 0  # the set iterator reads from the start
         self.each_body(self.cp_space, iterator, data)
         arr.num = count
+
+
+def _solver_state(
+    bodies: Sequence[pymunk.Body],
+    joints: Sequence[tuple[pymunk.PivotJoint, pymunk.GearJoint]],
+    values: NDArray[np.float64] | None = None,
+) -> NDArray[np.float64] | None:
+    """The state of chipmunk's solver that pymunk neither copies nor pickles, read from
+    ``bodies`` and ``joints`` or, given ``values``, written back: each body's bias
+    velocity (vx, vy, omega: the overlap correction of the last step, applied by the next
+    position update) and each pivot and gear joint's accumulated impulse (the warm start
+    of the next step). ``None`` (nothing read or written) where chipmunk's structs are not
+    laid out as :func:`_struct_offsets` expects."""
+    offsets = _struct_offsets()
+    if offsets is None:
+        return None
+    body_at, pivot_at, gear_at = offsets
+    fields = [(b._body, body_at) for b in bodies]
+    for pivot, gear in joints:
+        fields += [(pivot._constraint, pivot_at), (gear._constraint, gear_at)]
+    out = np.empty(sum(len(at) for _, at in fields)) if values is None else values
+    k = 0
+    for pointer, at in fields:
+        doubles = pb.ffi.cast("double *", pointer)
+        for i in at:
+            if values is None:
+                out[k] = doubles[i]
+            else:
+                doubles[i] = float(values[k])
+            k += 1
+    return out
+
+
+_OFFSETS: list = []  # the result of _struct_offsets, once computed
+
+
+def _struct_offsets() -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]] | None:
+    """Where a body's bias velocity and a pivot and a gear joint's accumulated impulse lie
+    in chipmunk's (opaque) structs, in doubles: checked on probes against the values pymunk
+    exposes (position, velocity, force, angle, angular velocity, torque, transform, which
+    precede the bias velocity; the anchor and phase that precede the impulses, and the
+    impulses' magnitudes after a step), ``None`` if they do not match."""
+    if not _OFFSETS:
+        try:
+            _OFFSETS.append(_probe_offsets())
+        except Exception:  # pragma: no cover - another chipmunk layout
+            _OFFSETS.append(None)
+    return _OFFSETS[0]
+
+
+def _probe_offsets() -> tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]] | None:
+    space = pymunk.Space()
+    body = pymunk.Body(2.0, 3.0)
+    body.position, body.velocity, body.force = (1.25, -2.5), (0.375, 0.625), (4.5, 5.5)
+    body.angle, body.angular_velocity, body.torque = 0.3, 0.7, 0.9
+    c, s = math.cos(0.3), math.sin(0.3)
+    expected = [1.25, -2.5, 0.375, 0.625, 4.5, 5.5, 0.3, 0.7, 0.9, c, s, -s, c, 1.25, -2.5]
+    doubles = pb.ffi.cast("double *", body._body)
+    found = [p for p in range(32) if [doubles[p + i] for i in range(15)] == expected]
+    if len(found) != 1:
+        return None
+    body_at = (found[0] + 16, found[0] + 17, found[0] + 18)  # after the user data pointer
+    # a resting circle that overlaps a wall, held by joints to a moving kinematic body
+    wall = pymunk.Segment(space.static_body, (-5.0, 0.0), (5.0, 0.0), 0.0)
+    body.position, body.velocity, body.force, body.angle = (0.0, 0.2), (0.0, 0.0), (0, 0), 0.0
+    body.angular_velocity, body.torque = 0.0, 0.0
+    control = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+    control.velocity, control.angular_velocity = (0.5, -0.5), 1.0
+    pivot = pymunk.PivotJoint(control, body, (0.123456789, 0.987654321), (0.0, 0.0))
+    gear = pymunk.GearJoint(control, body, 0.31415926, 1.0)
+    pivot.max_force = gear.max_force = 1.0
+    space.add(wall, body, pymunk.Circle(body, 0.5), control, pivot, gear)
+    joint_at = []
+    for joint, value, shift in ((pivot, 0.123456789, 12), (gear, 0.31415926, 5)):
+        doubles = pb.ffi.cast("double *", joint._constraint)
+        found = [p for p in range(32) if doubles[p] == value]
+        if len(found) != 1:
+            return None
+        joint_at.append(found[0] + shift)
+    dt = 0.01
+    space.step(dt)
+    bias = [pb.ffi.cast("double *", body._body)[i] for i in body_at]
+    p, v = body.position, body.velocity
+    pivot_d = pb.ffi.cast("double *", pivot._constraint)
+    jx, jy = pivot_d[joint_at[0]], pivot_d[joint_at[0] + 1]
+    gear_j = pb.ffi.cast("double *", gear._constraint)[joint_at[1]]
+    if not (bias[1] != 0.0 and jx != 0.0 and gear_j != 0.0):
+        return None
+    if math.sqrt(jx * jx + jy * jy) != pivot.impulse or abs(gear_j) != gear.impulse:
+        return None
+    space.step(dt)  # the position update adds the bias velocity
+    if tuple(body.position) != (p.x + (v.x + bias[0]) * dt, p.y + (v.y + bias[1]) * dt):
+        return None
+    return body_at, (joint_at[0], joint_at[0] + 1), (joint_at[1],)
 
 
 def _rows(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
