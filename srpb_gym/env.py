@@ -126,12 +126,11 @@ class SRPBNavEnv(gym.Env):
     :meth:`set_planning_time` before the step.
 
     ## Version History
-    * v0: initial release (dynamics, reward, observations and metric values unchanged
-      since). srpb-gym 0.1.0 later moved the episode metrics into the last ``info`` only
-      (before, earlier steps carried placeholder 0.0 values), added them at every
-      truncation, ``TimeLimit``'s included, and took ``robot_circumradius`` and
-      ``robot_max_speed`` from the robot's settings (the same values for the default
-      robot).
+    * v0: initial release. Later changes within v0 leave dynamics, reward, observations
+      and metric values as they were: the episode metrics are only in the last ``info``
+      (earlier steps used to carry placeholder 0.0 values) and at every truncation,
+      ``TimeLimit``'s included; ``robot_circumradius`` and ``robot_max_speed`` come from
+      the robot's settings (the same values for the default robot).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
