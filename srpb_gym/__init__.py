@@ -19,8 +19,9 @@ register_envs()
 
 
 def parallel_env(**kwargs: Any) -> Any:
-    """The PettingZoo ``ParallelEnv`` of several robots (arguments: those of ``gym.make``
-    plus ``n_robots``; see :class:`srpb_gym.pettingzoo_env.SRPBParallelEnv`)."""
+    """The PettingZoo ``ParallelEnv`` of several robots (arguments: the environment's
+    arguments of ``gym.make``, plus ``n_robots`` and an optional step limit ``max_steps``;
+    see :class:`srpb_gym.pettingzoo_env.SRPBParallelEnv`)."""
     from srpb_gym.pettingzoo_env import parallel_env as make
 
     return make(**kwargs)

@@ -18,7 +18,13 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from srpb_gym.episode_setup import RESET_OPTIONS, build_simulation, episode_layout, out_of_time
+from srpb_gym.episode_setup import (
+    RESET_OPTIONS,
+    build_simulation,
+    episode_layout,
+    out_of_time,
+    planning_seconds,
+)
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.planners.base import Knowledge
@@ -212,9 +218,19 @@ class SRPBNavEnv(gym.Env):
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Any, dict[str, Any]]:
-        super().reset(seed=seed)
+        rng = self._np_random
+        saved = (rng, None if rng is None else rng.bit_generator.state, self._np_random_seed)
+        try:
+            super().reset(seed=seed)
+            layout = self._layout(options)
+        except Exception:  # bad options: the environment stays as it was
+            self._np_random, state, self._np_random_seed = saved
+            if self._np_random is not None:
+                self._np_random.bit_generator.state = state
+            raise
         self._seed = seed
-        self.sim.reset(self._layout(options), self.np_random)
+        self._planning_override = None
+        self.sim.reset(layout, self.np_random)
         self._steps = 0
         self._episode += 1
         obs, info = self.task.reset()
@@ -231,11 +247,11 @@ class SRPBNavEnv(gym.Env):
                 if self._episode == 0 else
                 "the episode has ended (terminated or truncated); call reset() before step()"
             )  # fmt: skip
+        self.task.decode(action, self._cmd[0])  # a bad action raises before anything changes
         planning = self._planning_override
         if planning is None:
             planning = started - self._last_return
         self._planning_override = None
-        self.task.decode(action, self._cmd[0])
         self.sim.step(self._cmd, planning)
         self._steps += 1
         obs, reward, terminated, info = self.task.step()
@@ -250,9 +266,7 @@ class SRPBNavEnv(gym.Env):
     def set_planning_time(self, seconds: float) -> None:
         """Use ``seconds`` as the planner computation time of the next step instead of the
         measured wall time (for harnesses that time the planner themselves)."""
-        if not (isinstance(seconds, (int, float)) and math.isfinite(seconds) and seconds >= 0):
-            raise ValueError(f"planning time must be a finite number >= 0, got {seconds!r}")
-        self._planning_override = float(seconds)
+        self._planning_override = planning_seconds(seconds)
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:

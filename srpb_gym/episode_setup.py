@@ -4,6 +4,7 @@ drawing an episode's layout with the reset options, and the episode's time limit
 from __future__ import annotations
 
 import math
+import numbers
 import warnings
 from collections.abc import Mapping
 from dataclasses import replace
@@ -71,8 +72,11 @@ def episode_layout(
         if strict:
             raise InputError(message, key=f"options.{unknown[0]}")
         warnings.warn(f"options.{unknown[0]}: {message}; ignored", stacklevel=3)
+    people = options.get("people", True)
+    if not isinstance(people, (bool, np.bool_)):
+        raise InputError(f"expected true or false, got {people!r}", key="options.people")
     layout = sample(scenario, rng, n_robots=n_robots)
-    if not options.get("people", True):
+    if not people:
         layout = replace(layout, people=(), formations=())
     if "start" in options or "goal" in options:
         if n_robots != 1:
@@ -86,6 +90,14 @@ def episode_layout(
         _check_poses(scenario, start, goal)
         layout = replace(layout, robots=(RobotLayout(start, goal),))
     return layout
+
+
+def planning_seconds(value: Any) -> float:
+    """A planner computation time [s]: a finite real number >= 0 (numpy scalars too)."""
+    if (isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real)
+            or not math.isfinite(value) or value < 0):  # fmt: skip
+        raise ValueError(f"planning time must be a finite number >= 0 [s], got {value!r}")
+    return float(value)
 
 
 def out_of_time(sim: Simulation, steps: int, step_limit: int | None) -> bool:

@@ -29,7 +29,12 @@ from numpy.typing import NDArray
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import conversions, wrappers
 
-from srpb_gym.episode_setup import build_simulation, episode_layout, out_of_time
+from srpb_gym.episode_setup import (
+    build_simulation,
+    episode_layout,
+    out_of_time,
+    planning_seconds,
+)
 from srpb_gym.errors import InputError
 from srpb_gym.planners.base import Knowledge
 from srpb_gym.scenarios import load_scenario
@@ -59,8 +64,9 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
     ## Agents leaving and episode end
     An agent that reaches its goal, or collides with ``collision="terminate"``, is
     terminated: its last step returns its final info with its ``srpb/<metric>`` and
-    ``srpb_gt/<metric>`` episode metrics, and it leaves ``agents``. Its robot stays where
-    it stopped, as a standing obstacle (it keeps its body and receives zero commands). At
+    ``srpb_gt/<metric>`` episode metrics, and it leaves ``agents``. Its robot stays in the
+    world as an obstacle: it receives zero commands from then on, so it slows to a stop
+    within its acceleration limits (about 0.1 m at full speed) and stays there. At
     the scenario's time limit, or after ``max_steps`` steps, every remaining agent is
     truncated with its metrics. The episode ends when no agent is left.
 
@@ -154,11 +160,19 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
     def reset(
         self, seed: int | None = None, options: dict[str, Any] | None = None
     ) -> tuple[dict[str, Any], dict[str, dict[str, Any]]]:
-        if seed is not None or self._np_random is None:
-            self._np_random, _ = seeding.np_random(seed)
-        self._seed = seed
-        layout = episode_layout(self.scenario, self._np_random, options, self.n_robots,
-                                strict=False)  # fmt: skip
+        rng = self._np_random
+        if seed is not None or rng is None:
+            rng, _ = seeding.np_random(seed)
+            layout = episode_layout(self.scenario, rng, options, self.n_robots, strict=False)
+        else:  # bad options leave the generator as it was
+            state = rng.bit_generator.state
+            try:
+                layout = episode_layout(self.scenario, rng, options, self.n_robots, strict=False)
+            except Exception:
+                rng.bit_generator.state = state
+                raise
+        self._np_random, self._seed = rng, seed
+        self._override.clear()
         self.sim.reset(layout, self._np_random)
         self._steps = 0
         self._episode += 1
@@ -190,10 +204,11 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         self._cmd[:] = 0.0
         self._planning[:] = math.nan
         wall = started - self._last_return
-        for agent in self.agents:
+        for agent in self.agents:  # every action checked before anything is consumed
             task = self._task[agent]
             task.decode(actions[agent], self._cmd[task.robot])
-            self._planning[task.robot] = self._override.pop(agent, wall)
+        for agent in self.agents:
+            self._planning[self._task[agent].robot] = self._override.get(agent, wall)
         self._override.clear()
         self.sim.step(self._cmd, self._planning)
         self._steps += 1
@@ -214,13 +229,13 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
     def set_planning_time(self, seconds: Mapping[str, float] | float) -> None:
         """Use these planner computation times for the next step instead of the measured
         wall time: one number for every agent, or a mapping from agent to seconds."""
+        if not self.agents:
+            raise gym.error.ResetNeeded("no agent is in an episode; call reset() first")
         times = seconds if isinstance(seconds, Mapping) else dict.fromkeys(self.agents, seconds)
-        for agent, value in times.items():
-            if agent not in self._task:
-                raise ValueError(f"unknown agent {agent!r}")
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"planning time must be a finite number >= 0, got {value!r}")
-            self._override[agent] = float(value)
+        absent = [a for a in times if a not in self.agents]
+        if absent:
+            raise ValueError(f"agents not in the episode: {', '.join(map(str, absent))}")
+        self._override.update({a: planning_seconds(v) for a, v in times.items()})
 
     def render(self) -> NDArray[np.uint8] | None:
         if self.render_mode is None:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
 import yaml
 from gymnasium.envs.registration import WrapperSpec
@@ -28,7 +30,7 @@ STEP_LIMIT_SYNC = WrapperSpec("StepLimitSync", "srpb_gym.env:StepLimitSync", {})
 def _max_steps(scenario: str) -> int:
     """Control steps in the scenario's time limit (at the default control step)."""
     data = yaml.safe_load((scenarios_dir() / f"{scenario}.yaml").read_text(encoding="utf-8"))
-    return round(float(data.get("time_limit", 60.0)) / CONTROL_DT)
+    return math.ceil(float(data.get("time_limit", 60.0)) / CONTROL_DT - 1e-9)
 
 
 def register_envs() -> None:

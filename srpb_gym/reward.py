@@ -5,7 +5,7 @@ Term values of step k (from sample k to sample k+1, dt = t_{k+1} - t_k), before 
 | term | value | unit |
 | --- | --- | --- |
 | ``progress`` | goal distance at k minus goal distance at k+1 | m |
-| ``success`` | 1 on reaching the goal | - |
+| ``success`` | 1 on reaching the goal with no collision in the episode | - |
 | ``collision`` | 1 if the robot touched a wall, a person or a robot | - |
 | ``time`` | dt | s |
 | ``obs`` | dt if the obstacle distance at k < ``safety_distance`` | s |
@@ -19,8 +19,12 @@ Each SRPB term is the step's contribution to its metric in the metric's own form
 parameters, computed by the metric code (:func:`srpb_gym.metrics.episode.entity_values`
 and :mod:`srpb_gym.metrics.kernels`): summed over an episode, ``obs`` gives
 ``m_obs * T / 100``, ``psi`` gives ``m_psi`` times the time with people around over 100,
-``chc`` gives ``m_chc``, and so on. Weights come from a preset (``configs/reward/*.yaml``,
-packaged as ``srpb_gym.reward_presets``) overridden by name.
+``chc`` gives ``m_chc``, and so on: exactly so in the ``paper`` semantics. With
+``reference`` semantics the per-person and per-group values (psi, fsi, dir) and the motion
+predicates use the reference formulas, while ``obs``, ``chc``, ``vsm`` and ``hsm`` keep
+the paper's per-step form (the reference tool's run-based ``m_obs``, unwrapped heading
+change and extra final aggregation entry have none). Weights come from a preset
+(``configs/reward/*.yaml``, packaged as ``srpb_gym.reward_presets``) overridden by name.
 """
 
 from __future__ import annotations
@@ -173,21 +177,20 @@ def _sample_terms(row, people, prm, reference, out):  # pragma: no cover - compi
     t, x, y, yaw, vx, vy, w = row[0], row[1], row[2], row[3], row[4], row[5], row[6]
     osc, bwd, iprot = kernels.motion_predicates(vx, vy, w, prm[0], prm[1], prm[2], prm[3],
                                                 prm[4], reference)  # fmt: skip
-    psi_max, dir_max = 0.0, 0.0
+    psi_max, dir_max = -math.inf, -math.inf  # as the metric's aggregation: max() skips NaN
     speed = math.hypot(vx, vy)
     for i in range(people.shape[0]):
         p = people[i]
         psi, dirv = kernels.person_pair(x, y, yaw, speed, p[0], p[1], p[2], p[7], p[8], p[3],
                                         p[4], p[5], p[6], prm[5], prm[6], prm[7], prm[8],
                                         reference)  # fmt: skip
-        if i == 0 or psi > psi_max:
-            psi_max = psi
-        if i == 0 or dirv > dir_max:
-            dir_max = dirv
+        psi_max, dir_max = max(psi_max, psi), max(dir_max, dirv)
     out[0], out[1] = t, row[10]
     out[2], out[3], out[4] = 1.0 if osc else 0.0, 1.0 if bwd else 0.0, 1.0 if iprot else 0.0
     out[5], out[6], out[7], out[8] = vx, vy, w, yaw
-    out[9], out[10], out[11] = psi_max, 0.0, dir_max
+    out[9] = psi_max if psi_max > -math.inf else 0.0  # nobody (with a value) around: 0
+    out[10] = 0.0
+    out[11] = dir_max if dir_max > -math.inf else 0.0
 
 
 @njit(cache=True, error_model="numpy")

@@ -15,7 +15,7 @@ A step, seen from an adapter::
     for task in tasks:
         obs, reward, terminated, info = task.step()
         if terminated or out_of_time:
-            task.finish(info, truncated=not terminated, stem=...)
+            task.finish(info, stem=...)
 """
 
 from __future__ import annotations

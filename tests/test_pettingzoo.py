@@ -194,3 +194,20 @@ def _towards(par: SRPBParallelEnv, agent: str) -> np.ndarray:
     ox, oy = sim.world.robot_pose[1 - r, :2]
     err = math.remainder(math.atan2(oy - y, ox - x) - yaw, 2 * math.pi)
     return np.array([max(0.0, math.cos(err)), np.clip(2.0 * err, -1, 1)], dtype=np.float32)
+
+
+def test_planning_times_are_checked_and_do_not_leak():
+    par = parallel_env(scenario="corridor", n_robots=2, max_steps=3)
+    with pytest.raises(gym.error.ResetNeeded):
+        par.set_planning_time(0.1)
+    par.reset(seed=0)
+    par.set_planning_time({"robot_0": 5.0})
+    par.reset(seed=0)  # a new episode: the override is gone
+    with pytest.raises(ValueError, match="finite"):  # a bad action consumes nothing
+        par.step({"robot_0": np.zeros(2, np.float32), "robot_1": np.array([math.nan, 0.0])})
+    par.set_planning_time({"robot_1": np.float64(0.5)})
+    par.step({a: np.zeros(2, np.float32) for a in par.agents})
+    times = [par.sim.robots[r].record.robot_col("planning_time")[0] for r in (0, 1)]
+    assert times[0] != 5.0 and times[1] == 0.5
+    with pytest.raises(ValueError, match="not in the episode"):
+        par.set_planning_time({"robot_7": 0.1})

@@ -332,3 +332,39 @@ def test_o_space_term_equals_the_metric_code(semantics):
         assert info["srpb_step/fsi"] == pytest.approx(expected, rel=1e-12, abs=1e-15), k
         nonzero += expected > 1e-6
     assert nonzero > 5  # the robot drove into the O-space
+
+
+def test_planning_time_overrides_never_leak():
+    env = gym.make("SRPB-Corridor-v0", max_episode_steps=3).unwrapped
+    env.reset(seed=0)
+    env.set_planning_time(7.0)
+    env.reset(seed=0)  # a new episode: the override is gone
+    env.step(np.zeros(2, np.float32))
+    assert env.task.record.robot_col("planning_time")[0] != 7.0
+    env.set_planning_time(np.float32(0.25))  # numpy scalars are fine
+    with pytest.raises(ValueError, match="finite"):
+        env.step(np.array([math.nan, 0.0], np.float32))  # a bad action consumes nothing
+    env.step(np.zeros(2, np.float32))
+    assert env.task.record.robot_col("planning_time")[1] == 0.25
+    for bad in (True, -1.0, math.inf, "1"):
+        with pytest.raises(ValueError, match="planning time"):
+            env.set_planning_time(bad)
+
+
+def test_bad_reset_options_leave_the_env_as_it_was():
+    env = gym.make("SRPB-Crowd-v0").unwrapped
+    env.reset(seed=4)
+    state = env.np_random.bit_generator.state
+    name = env.episode_name()
+    for options in ({"people": "false"}, {"start": (math.nan, 0, 0)}, {"goal": (0.0, 0.0, 0.0)}):
+        with pytest.raises(ValueError, match="options"):
+            env.reset(seed=9, options=options)
+        assert env.np_random.bit_generator.state == state and env.episode_name() == name
+    env.step(np.zeros(2, np.float32))  # the episode goes on
+    assert env.reset(seed=4, options={"people": False})[0].shape == env.observation_space.shape
+
+
+def test_reference_semantics_time_the_planner():
+    env = gym.make("SRPB-Corridor-v0", metrics={"semantics": "reference"}, max_episode_steps=5)
+    info, *_ = drive(env, 0, spin)
+    assert info["srpb/m_cef"] == pytest.approx(1.0) and info["srpb_gt/m_cre"] == 0.0
