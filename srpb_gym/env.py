@@ -129,7 +129,8 @@ class SRPBNavEnv(gym.Env):
 
     The planner's computation time (m_cef, m_cre) is the wall time between the previous
     ``reset``/``step`` returning and this ``step`` starting, unless a harness calls
-    :meth:`set_planning_time` before the step.
+    :meth:`set_planning_time` before the step. Inside a vector environment that wall time
+    includes the other environments' steps: set the time explicitly where it matters.
 
     ## Version History
     * v0: initial release. Later changes within v0 leave dynamics, reward, observations
