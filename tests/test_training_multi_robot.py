@@ -1,0 +1,71 @@
+"""The shared-policy training adapter over the multi-robot environment, and a smoke run."""
+
+from __future__ import annotations
+
+import csv
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+import srpb_gym  # noqa: E402
+from srpb_gym.cli import main as cli_main  # noqa: E402
+from training.multi_robot import SharedPolicyVecEnv  # noqa: E402
+
+
+def make() -> srpb_gym.pettingzoo_env.SRPBParallelEnv:
+    return srpb_gym.parallel_env(scenario="corridor", n_robots=2, reward="task")
+
+
+def test_one_robot_leaving_ends_the_episode_for_its_environment():
+    venv = SharedPolicyVecEnv([make, make])
+    venv.seed(0)
+    obs = venv.reset()
+    assert obs.shape == (4, *venv.observation_space.shape) and venv.num_envs == 4
+    # robot 1 of environment 0 turns to the side wall and drives into it; the rest stand
+    for _ in range(200):
+        actions = np.zeros((4, 2), np.float32)
+        yaw = venv.envs[0].sim.world.robot_pose[1, 2]
+        err = math.remainder(math.pi / 2 - yaw, 2 * math.pi)
+        actions[1] = [1.0 if abs(err) < 0.1 else 0.0, np.clip(2 * err, -1, 1)]
+        obs, _, dones, infos = venv.step(actions)
+        if dones.any():
+            break
+    else:
+        raise AssertionError("nobody left")
+    assert dones.tolist() == [True, True, False, False]  # environment 0 only, both slots
+    assert infos[1]["collision"] and infos[1]["TimeLimit.truncated"] is False
+    assert infos[0]["TimeLimit.truncated"] is True  # cut short by robot 1: bootstrapped
+    assert "srpb/m_psi" in infos[1] and "srpb/m_psi" not in infos[0]
+    for i in (0, 1):
+        assert infos[i]["terminal_observation"].shape == venv.observation_space.shape
+        assert not np.array_equal(infos[i]["terminal_observation"], obs[i])  # reset since
+    assert venv.envs[0].agents == ["robot_0", "robot_1"]  # a new episode
+    assert venv.get_attr("n_robots") == [2, 2, 2, 2]
+
+
+def test_train_then_evaluate(tmp_path, capsys):
+    out = tmp_path / "ppo"
+    run = subprocess.run(
+        [sys.executable, "-m", "training.multi_robot", "--scenario", "corridor", "--robots",
+         "2", "--envs", "2", "--steps", "512", "--out", str(out)],
+        cwd=ROOT, capture_output=True, text=True, timeout=600,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert {p.name for p in out.iterdir()} == {"model.zip", "vecnormalize.pkl", "run.json"}
+    code = cli_main(["eval", "--env", "SRPB-Corridor-v0", "--robots", "2", "--policy",
+                     str(out / "model.zip"), "--episodes", "2", "--warmup", "5", "--out",
+                     str(tmp_path / "eval")])  # fmt: skip
+    assert code == 0
+    assert "observations normalised with" in capsys.readouterr().err
+    with open(tmp_path / "eval" / "episodes.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted((r["seed"], r["robot"]) for r in rows) == [
+        ("0", "0"), ("0", "1"), ("1", "0"), ("1", "1")]  # fmt: skip
