@@ -55,7 +55,7 @@ def test_train_then_evaluate(tmp_path, capsys):
     out = tmp_path / "ppo"
     run = subprocess.run(
         [sys.executable, "-m", "training.multi_robot", "--scenario", "corridor", "--robots",
-         "2", "--envs", "2", "--steps", "512", "--out", str(out)],
+         "2", "--envs", "2", "--steps", "2048", "--out", str(out)],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
