@@ -26,6 +26,7 @@ import numpy as np
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.runner import EpisodeResult
 from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
+from srpb_gym.metrics.io_native import read_text
 
 CSV_COLUMNS: tuple[str, ...] = (
     "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES,
@@ -83,31 +84,6 @@ def write_episodes(path: str, results: Iterable[EpisodeResult], robots: bool | N
         writer.writerow(ROBOT_COLUMNS if robots else CSV_COLUMNS)
         writer.writerows(csv_row(r, robots) for r in results)
     os.replace(tmp, path)
-
-
-def read_text(path: str) -> str:
-    """The text of a UTF-8 file; :class:`InputError` naming the file (and the line) when it
-    cannot be read or is binary (not UTF-8, NUL bytes)."""
-    try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except FileNotFoundError:
-        raise InputError("no such file", path) from None
-    except IsADirectoryError:
-        raise InputError("is a folder, not a file", path) from None
-    except OSError as exc:
-        raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = data.count(b"\n", 0, exc.start) + 1
-        raise InputError(f"not a UTF-8 text file (byte 0x{data[exc.start]:02x}): a binary "
-                         f"file?", path, line) from None  # fmt: skip
-    nul = text.find("\0")
-    if nul >= 0:
-        raise InputError("not a text file (NUL byte): a binary file?", path,
-                         text.count("\n", 0, nul) + 1)  # fmt: skip
-    return text
 
 
 def read_episodes(path: str) -> list[EpisodeResult]:

@@ -158,15 +158,16 @@ def _gc_paused():
             gc.enable()
 
 
-def _read_text(path: PathLike) -> str:
-    """The file's text; binary content (not UTF-8, or NUL bytes) is refused with its line."""
+def read_text(path: PathLike) -> str:
+    """The text of a UTF-8 file; :class:`InputError` naming the file (and the line) when it
+    cannot be read or is binary (not UTF-8, NUL bytes)."""
     try:
         with open(path, "rb") as f:
             data = f.read()
     except FileNotFoundError:
         raise InputError("no such file", path) from None
     except IsADirectoryError:
-        raise InputError("is a directory, not a log file", path) from None
+        raise InputError("is a folder, not a file", path) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror or exc}", path) from None
     try:
@@ -187,7 +188,7 @@ class _Lines:
 
     def __init__(self, path: PathLike) -> None:
         self.path = path
-        text = _read_text(path)
+        text = read_text(path)
         self.ascii = text.isascii()
         self.numbers: list[int] = []
         self.texts: list[str] = []
