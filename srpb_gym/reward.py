@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import warnings
 from collections.abc import Mapping
 from importlib.resources import files
 from typing import Any
@@ -105,6 +106,53 @@ def resolve_weights(
     return np.array([weights.get(name, 0.0) for name in TERMS])
 
 
+#: terms whose sum over an episode is bounded by the geometry, not by its length:
+#: ``progress`` telescopes to the start distance minus the end distance, ``success`` and
+#: ``collision`` happen once
+EVENT_TERMS: tuple[str, ...] = ("progress", "success", "collision")
+#: every other term: paid per step for as long as the episode runs
+SHAPING_TERMS: tuple[str, ...] = tuple(t for t in TERMS if t not in EVENT_TERMS)
+
+
+#: headroom of the bounds of terms computed from measured (not commanded) velocities
+MEASURED_MARGIN = 1.01
+
+
+def step_bounds(control_dt: float, robot: Any) -> dict[str, float]:
+    """The largest value each shaping term can take in one control step of ``control_dt``
+    seconds for a robot within its velocity and acceleration limits (``robot``: a
+    :class:`~srpb_gym.sim.robot.RobotConfig`). Per-second terms are at most ``dt`` (the
+    psi, fsi and dir values are at most 1); ``chc`` at most the yaw change at ``w_max``;
+    ``vsm`` and ``hsm`` at most the acceleration limits. These three are measured
+    velocities, which the physics tracks to within 0.03 % of the commanded ones on steps
+    without a contact: their bounds carry a 1 % margin (:data:`MEASURED_MARGIN`)."""
+    lateral = robot.acc_lin if robot.kinematics == "holonomic" else 0.0
+    dt, m = float(control_dt), MEASURED_MARGIN
+    bounds = dict.fromkeys(("time", "obs", "osc", "bwd", "iprot", "psi", "fsi", "dir"), dt)
+    bounds.update(vsm=m * math.hypot(robot.acc_lin, lateral), hsm=m * robot.acc_ang,
+                  chc=m * robot.w_max * dt)  # fmt: skip
+    return {t: bounds[t] for t in SHAPING_TERMS}
+
+
+def shaping_bound(
+    weights: Mapping[str, float] | NDArray[np.float64], time_limit: float, control_dt: float,
+    robot: Any,
+) -> float:  # fmt: skip
+    """The most the shaping terms (:data:`SHAPING_TERMS`) can cost over an episode of
+    ``time_limit`` seconds: every penalised term at its per-step bound (:func:`step_bounds`)
+    on every step. A positive weight (a bonus) never adds to the cost."""
+    if not isinstance(weights, Mapping):
+        weights = dict(zip(TERMS, np.asarray(weights, dtype=np.float64).tolist()))
+    steps = math.ceil(time_limit / control_dt - 1e-9)
+    bounds = step_bounds(control_dt, robot)
+    return steps * sum(-min(weights.get(t, 0.0), 0.0) * bounds[t] for t in SHAPING_TERMS)
+
+
+class RewardGameableWarning(UserWarning):
+    """The reward weights let a collision pay: the shaping of one long episode can cost
+    more than the collision penalty, so a policy may learn to crash early."""
+
+
 class RewardFunction:
     """Computes the term values of each step from the robot's SRPB record.
 
@@ -126,6 +174,27 @@ class RewardFunction:
         self.weighted = np.zeros(len(TERMS))
         self._prev, self._new = np.zeros(SAMPLE), np.zeros(SAMPLE)
         self._taubin_size = TAUBIN_MIN_MEMBERS[semantics == "reference"]
+        self._checked: set[tuple[float, float]] = set()
+
+    def check_bound(self, time_limit: float, control_dt: float, robot: Any) -> None:
+        """Warn (:class:`RewardGameableWarning`, once per time limit and step) when the
+        shaping of an episode of ``time_limit`` seconds can cost as much as a collision."""
+        key = (float(time_limit), float(control_dt))
+        if key in self._checked:
+            return
+        self._checked.add(key)
+        penalty = -float(self.weights[_T["collision"]])
+        bound = shaping_bound(self.weights, time_limit, control_dt, robot)
+        if bound > 0.0 and bound >= penalty:
+            what = (f"the collision penalty {penalty:.3g}" if penalty > 0.0 else
+                    f"a collision, which is not penalised (weight {-penalty:g})")  # fmt: skip
+            warnings.warn(
+                f"reward: the shaping terms can cost up to {bound:.3g} over the {time_limit:g} s "
+                f"time limit (control_dt {control_dt:g} s), more than {what}: a policy may "
+                "learn to end episodes by crashing. Raise 'collision' or lower the shaping "
+                "weights (see srpb_gym.reward.shaping_bound)",
+                RewardGameableWarning, stacklevel=3,
+            )  # fmt: skip
 
     def reset(self, record: EpisodeRecord, goal_distance: float) -> None:
         """Start an episode at the record's first sample."""

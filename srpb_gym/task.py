@@ -151,6 +151,9 @@ class RobotTask:
         self.collided = False
         self.done = False
         distance = self.sim.goal_distance(self.robot)
+        if self.collision_mode == "terminate":
+            self.reward_fn.check_bound(self.sim.layout.time_limit, self.sim.config.control_dt,
+                                       self.sim.robot_config)  # fmt: skip
         self.reward_fn.reset(self.record, distance)
         info = self._info(False, False, distance)
         return self.observation(), info

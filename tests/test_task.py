@@ -99,6 +99,7 @@ def test_step_before_reset_and_after_the_end_are_clear_errors():
 
 
 # ------------------------------------------------------------------ reward
+@pytest.mark.filterwarnings("ignore::srpb_gym.reward.RewardGameableWarning")
 def test_every_reward_term_by_hand():
     weights = {t: float(i + 1) for i, t in enumerate(TERMS)}  # distinct, all non-zero
     env = gym.make("SRPB-FFormation-v0", reward_weights=weights, max_episode_steps=60)

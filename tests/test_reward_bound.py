@@ -1,0 +1,104 @@
+"""The reward presets cannot be gamed by crashing: the shaping of the longest possible
+episode costs less than a collision, and the per-step bound behind that claim holds."""
+
+from __future__ import annotations
+
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import srpb_gym  # noqa: F401  (registers the ids)
+from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.reward import (
+    SHAPING_TERMS,
+    RewardGameableWarning,
+    load_preset,
+    preset_names,
+    shaping_bound,
+    step_bounds,
+)
+from srpb_gym.scenarios import load_scenario
+from srpb_gym.sim.robot import RobotConfig
+
+
+@pytest.mark.parametrize("preset", ["srpb", "task"])
+@pytest.mark.parametrize("scenario", sorted(SCENARIO_IDS.values()))
+def test_worst_case_shaping_costs_less_than_a_collision(preset: str, scenario: str) -> None:
+    weights = load_preset(preset)
+    limit = load_scenario(scenario).time_limit
+    bound = shaping_bound(weights, limit, 0.1, RobotConfig())
+    assert 0.0 < bound < -weights["collision"]
+
+
+def test_every_packaged_preset_is_checked() -> None:
+    assert set(preset_names()) == {"srpb", "task"}
+
+
+def test_shaping_bound_by_hand() -> None:
+    # 10 steps of 0.1 s: psi at most 0.1 s per step, chc at most w_max * dt rad per step (+1 %)
+    robot = RobotConfig()
+    bound = shaping_bound({"psi": -2.0, "chc": -1.0, "progress": -5.0, "time": 3.0}, 1.0, 0.1,
+                          robot)  # fmt: skip
+    assert bound == pytest.approx(10 * (2.0 * 0.1 + 1.0 * 1.01 * robot.w_max * 0.1))
+
+
+def test_holonomic_robot_bounds_both_axes() -> None:
+    diff, holo = RobotConfig(), RobotConfig(kinematics="holonomic")
+    assert step_bounds(0.1, diff)["vsm"] == pytest.approx(1.01 * diff.acc_lin)
+    assert step_bounds(0.1, holo)["vsm"] == pytest.approx(1.01 * np.hypot(1.0, 1.0) * holo.acc_lin)
+
+
+@pytest.mark.parametrize("env_id", ["SRPB-Crowd-v0", "SRPB-Corridor-v0"])
+def test_per_step_values_stay_within_their_bounds(env_id: str) -> None:
+    """Jerky random driving (full reversals of both commands) never exceeds a term's bound
+    on a step without a contact."""
+    env = gym.make(env_id)
+    bounds = step_bounds(0.1, RobotConfig())
+    rng = np.random.default_rng(3)
+    seen = dict.fromkeys(SHAPING_TERMS, 0.0)
+    for episode in range(3):
+        env.reset(seed=episode)
+        for _ in range(300):
+            action = rng.choice([-1.0, 1.0], size=2).astype(np.float32)
+            _, _, terminated, truncated, info = env.step(action)
+            if info["collision"]:
+                break
+            for term in SHAPING_TERMS:
+                key = f"srpb_step/{term}" if f"srpb_step/{term}" in info else None
+                value = info[key] if key else info[f"reward_{term}"] / -0.05
+                assert value <= bounds[term] * (1 + 1e-9) + 1e-12, (term, value)
+                seen[term] = max(seen[term], value)
+            if terminated or truncated:
+                break
+    env.close()
+    assert seen["vsm"] > 0.5 * bounds["vsm"] and seen["hsm"] > 0.5 * bounds["hsm"]
+
+
+def test_gameable_weights_warn_once() -> None:
+    env = gym.make("SRPB-Crowd-v0", reward_weights={"psi": -4.0})
+    with pytest.warns(RewardGameableWarning, match="collision penalty"):
+        env.reset(seed=0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RewardGameableWarning)
+        env.reset(seed=1)  # the same time limit: said once
+    env.close()
+
+
+@pytest.mark.parametrize("preset", ["srpb", "task"])
+def test_packaged_presets_do_not_warn(preset: str) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RewardGameableWarning)
+        for env_id in SCENARIO_IDS:
+            env = gym.make(env_id, reward=preset)
+            env.reset(seed=0)
+            env.close()
+
+
+def test_continuing_collisions_are_not_checked() -> None:
+    env = gym.make("SRPB-Crowd-v0", reward_weights={"psi": -4.0}, collision="continue")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RewardGameableWarning)
+        env.reset(seed=0)
+    env.close()
