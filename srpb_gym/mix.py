@@ -21,6 +21,7 @@ import numpy as np
 from srpb_gym.env import RESET_OPTIONS, SRPBNavEnv
 from srpb_gym.episode_setup import episode_layout
 from srpb_gym.errors import InputError
+from srpb_gym.metrics.params import MetricParams
 from srpb_gym.registration import MIX_SCENARIOS
 from srpb_gym.scenarios import Scenario
 from srpb_gym.sim.layout import EpisodeLayout
@@ -48,12 +49,14 @@ class SRPBMixEnv(SRPBNavEnv):
     reward and SRPB metrics) over several scenarios: every ``reset`` draws one scenario
     with the given weights and runs the episode in it. By default the five packaged
     scenarios corridor, fformation, crossing, crowd and doorway, with equal weights.
-    Each scenario keeps its own simulation, sensors (the scenario's ``sensors``: fformation
-    and corridor sense people with a camera detector, the others with a lidar leg
-    detector), goal tolerance, time limit and metric parameters; every other setting (the
-    arguments below) is shared. ``scenario``, ``sim`` and ``task`` are those of the current
-    episode (of the first scenario before the first reset); ``scenarios`` names the
-    scenarios of the mixture and ``weights`` their probabilities.
+    Each scenario keeps its own simulation, sensors (the scenario's ``sensors`` section:
+    the packaged scenarios differ in their people detector, a camera detector or a lidar
+    leg detector), goal tolerance, time limit and metric parameters; every other setting
+    (the arguments below) is shared. ``scenario``, ``sim``, ``task`` and ``params`` are
+    those of the current episode (of the first scenario before the first reset);
+    ``scenarios`` names the scenarios of the mixture, ``weights`` gives their
+    probabilities, and :meth:`scenario_of` and :meth:`params_of` the scenario and the
+    metric parameters of each.
 
     ## Action Space
     As :class:`~srpb_gym.env.SRPBNavEnv`: ``Box(-1, 1, (2,), float32)`` (linear, angular)
@@ -88,10 +91,10 @@ class SRPBMixEnv(SRPBNavEnv):
     ## Episode End
     As :class:`~srpb_gym.env.SRPBNavEnv`, each episode with its own scenario's goal
     tolerance and time limit: the environment truncates an episode at its scenario's time
-    limit itself (60 s, or 90 s for crowd), with the metrics in the last ``info``.
-    ``SRPB-Mix-v0`` is registered with ``max_episode_steps`` of the longest default
-    scenario (900 steps: crowd's 90 s at the 0.1 s control step), so ``TimeLimit`` never
-    ends a shorter scenario's episode before the environment does. A step limit of
+    limit itself (60 s for most packaged scenarios, 90 s for crowd), with the metrics in
+    the last ``info``. ``SRPB-Mix-v0`` is registered with the ``max_episode_steps`` of the
+    longest default scenario (900 steps with crowd's 90 s at the 0.1 s control step), so
+    ``TimeLimit`` never ends an episode before the environment does. A step limit of
     ``gym.make(..., max_episode_steps=N)`` applies to every scenario; when the registered
     limit is shorter than a scenario's time limit (a longer scenario file), a warning names
     the scenario and the ``max_episode_steps`` that covers it.
@@ -171,6 +174,14 @@ class SRPBMixEnv(SRPBNavEnv):
         info["scenario"] = self.scenario.name
         return obs, reward, terminated, truncated, info
 
+    def scenario_of(self, name: str) -> Scenario:
+        """The scenario ``name`` of the mixture (its name, or as given in ``scenarios``)."""
+        return self._parts[self._index_of(name, "name")].scenario
+
+    def params_of(self, name: str) -> MetricParams:
+        """The SRPB metric parameters of the episodes of scenario ``name``."""
+        return self._parts[self._index_of(name, "name")].task.params
+
     # ------------------------------------------------------------------ internals
     def _layout(self, options: dict[str, Any] | None) -> EpisodeLayout:
         """Draw the scenario, then its layout; switch to it only when both succeeded (a bad
@@ -185,14 +196,15 @@ class SRPBMixEnv(SRPBNavEnv):
                              key=f"options.{unknown[0]}")  # fmt: skip
         index = int(self.np_random.choice(len(self._parts), p=self._probabilities))
         if "scenario" in options:
-            index = self._index_of(options.pop("scenario"))
+            index = self._index_of(options.pop("scenario"), "options.scenario")
         part = self._parts[index]
         layout = episode_layout(part.scenario, self.np_random, options)
         self.scenario, self.sim, self.task = part
         return layout
 
-    def _index_of(self, name: Any) -> int:
-        """The index of the scenario ``name`` (its name, or as given in ``scenarios``)."""
+    def _index_of(self, name: Any, key: str) -> int:
+        """The index of the scenario ``name`` (its name, or as given in ``scenarios``); an
+        error names ``key``."""
         if isinstance(name, os.PathLike):
             name = os.fspath(name)
         if isinstance(name, str):
@@ -200,7 +212,7 @@ class SRPBMixEnv(SRPBNavEnv):
                 if name in names:
                     return names.index(name)
         raise InputError(f"{name!r} is not a scenario of the mixture; choose one of: "
-                         f"{', '.join(self.scenarios)}", key="options.scenario")  # fmt: skip
+                         f"{', '.join(self.scenarios)}", key=key)  # fmt: skip
 
     def _warn_short_limit(self) -> None:
         """Warn when the step limit ends a scenario's episodes before its time limit."""

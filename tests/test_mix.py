@@ -20,7 +20,7 @@ from srpb_gym.env import SRPBNavEnv
 from srpb_gym.errors import InputError
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.mix import SRPBMixEnv
-from srpb_gym.registration import MIX_ID, MIX_SCENARIOS
+from srpb_gym.registration import MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 from srpb_gym.resources import scenarios_dir
 
 STOP = np.zeros(2, dtype=np.float32)
@@ -66,12 +66,17 @@ def test_registered_id():
     assert base.scenarios == MIX_SCENARIOS == ("corridor", "fformation", "crossing", "crowd",
                                                "doorway")  # fmt: skip
     assert base.weights == pytest.approx([0.2] * 5)
-    # the step limit covers the longest scenario (crowd: 90 s at 0.1 s)
-    assert (
-        env.spec.max_episode_steps
-        == 900
-        == max(math.ceil(SRPBNavEnv(s).scenario.time_limit / 0.1 - 1e-9) for s in MIX_SCENARIOS)
-    )
+    # the step limit covers the longest scenario (at the 0.1 s control step)
+    limits = [base.scenario_of(s).time_limit for s in MIX_SCENARIOS]
+    assert env.spec.max_episode_steps == max(math.ceil(t / 0.1 - 1e-9) for t in limits)
+    assert min(limits) < max(limits)  # the scenarios end at different times
+    for name in MIX_SCENARIOS:
+        assert base.scenario_of(name).name == name
+        single = gym.make(next(k for k, v in SCENARIO_IDS.items() if v == name)).unwrapped
+        assert base.params_of(name) == single.params
+    with pytest.raises(InputError, match="'office' is not a scenario") as caught:
+        base.params_of("office")
+    assert caught.value.key == "name"
     assert env.observation_space == gym.make("SRPB-Corridor-v0").observation_space
     assert env.action_space == gym.make("SRPB-Crowd-v0").action_space
 
@@ -247,7 +252,9 @@ def test_a_different_lidar_is_reported(tmp_path):
 
 def test_episodes_end_at_their_own_time_limit():
     env = gym.make(MIX_ID)
-    for name, limit in (("corridor", 60.0), ("crowd", 90.0)):
+    limits = {name: env.unwrapped.scenario_of(name).time_limit for name in MIX_SCENARIOS}
+    shortest, longest = min(limits, key=limits.get), max(limits, key=limits.get)
+    for name, limit in ((shortest, limits[shortest]), (longest, limits[longest])):
         _, info = env.reset(seed=0, options={"scenario": name, "people": False})
         assert info["scenario"] == name and "srpb/m_goal" not in info
         steps = 0
