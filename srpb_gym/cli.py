@@ -10,6 +10,9 @@ Usage::
                   [--out DIR] [--resume] [--workers N] [--warmup STEPS] [--video [K]]
                   [--robots N] [--semantics S] [--preset P]
     srpb-gym compare DIR [DIR ...] [--out DIR] [--separate]
+    srpb-gym train --env ID [--reward PRESET] [--seed S] [--steps N]
+                   [--hyperparams KEY=VALUE ...] [--env-kwargs KEY=VALUE ...] [--config FILE]
+                   [--out DIR] [--no-progress]
     srpb-gym --version
 
 Every subcommand is registered by one ``add_<name>_command(subparsers)`` function listed in
@@ -33,6 +36,7 @@ from typing import Any
 
 from srpb_gym import __version__
 from srpb_gym.errors import InputError
+from srpb_gym.training.cli import add_train_command
 
 PROG = "srpb-gym"
 
@@ -392,7 +396,9 @@ def run_compare(args: argparse.Namespace) -> int:
 
 
 # ---------------------------------------------------------------------------- main
-COMMANDS: list[Callable[[Any], None]] = [add_metrics_command, add_eval_command, add_compare_command]
+COMMANDS: list[Callable[[Any], None]] = [
+    add_metrics_command, add_eval_command, add_compare_command, add_train_command,
+]  # fmt: skip
 """Functions registering one subcommand each on the subparsers object."""
 
 

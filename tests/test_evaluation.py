@@ -173,7 +173,7 @@ def test_run_episode_options_and_timing():
     [
         (["--env", "SRPB-Nowhere-v0"], "--env: unknown environment id 'SRPB-Nowhere-v0'"),
         (["--planner", "teleport"], "--planner: unknown planner 'teleport'; choose one of"),
-        (["--policy", "missing.zip"], "missing.zip: --policy: no such file"),
+        (["--policy", "missing.zip"], "missing.zip: --policy: no such file or shipped model ("),
         (["--policy", "garbage.zip"], "garbage.zip: --policy: not a stable-baselines3 model (not"),
         (["--out", "a_file.txt"], "--out: a_file.txt is an existing file"),
         (["--episodes", "0"], "--episodes: must be at least 1, got 0"),

@@ -1,6 +1,7 @@
 """Learned policies of an evaluation: each ``--policy`` file checked before the first episode.
 
-For every model file :func:`policy_specs` reads its algorithm (or takes the forced one),
+For every model file (or short name of a shipped model, :mod:`srpb_gym.models`, which
+also names its column) :func:`policy_specs` reads its algorithm (or takes the forced one),
 finds its observation-normalisation statistics (or says that none were found), loads both
 once and checks the model's observation and action spaces against every environment's,
 so that a run never evaluates a model on observations it was not trained for.
@@ -44,7 +45,10 @@ def policy_specs(
         vecnormalize = None
     if vecnormalize not in (None, "auto") and not os.path.isfile(vecnormalize):
         raise InputError("no such file", vecnormalize, key="--vecnormalize")
-    stems = [Path(p).stem for p in paths]
+    given = [os.fspath(p) for p in paths]
+    shipped = [_shipped(p) for p in given]  # a short name of a shipped model, or a file
+    paths = [os.fspath(s) if s is not None else p for p, s in zip(given, shipped)]
+    stems = [g if s is not None else Path(g).stem for g, s in zip(given, shipped)]
     specs = []
     for path, stem in zip(paths, stems):
         name = stem if stems.count(stem) == 1 else f"{Path(path).resolve().parent.name}-{stem}"
@@ -58,6 +62,13 @@ def policy_specs(
         _check_spaces(policy, probe)
         specs.append(spec)
     return specs
+
+
+def _shipped(given: str) -> Path | None:
+    """The ``model.zip`` of the shipped model named ``given`` (when no such file exists)."""
+    from srpb_gym.models import model_path
+
+    return None if os.path.exists(given) else model_path(given)
 
 
 def _policy_spec(
@@ -100,7 +111,11 @@ def load_policy(spec: PlannerSpec) -> LearnedPolicy:
 
     path = str(spec.policy)
     if not os.path.isfile(path):
-        raise InputError("no such file", path, key="--policy")
+        from srpb_gym.models import model_names
+
+        names = model_names()
+        shipped = f"shipped models: {', '.join(names)}" if names else "no models are shipped"
+        raise InputError(f"no such file or shipped model ({shipped})", path, key="--policy")
     if not os.access(path, os.R_OK):
         raise InputError("cannot read the file", path, key="--policy")
     try:

@@ -1,0 +1,262 @@
+"""stable-baselines3 callbacks of a training run.
+
+* :class:`EpisodeStatsCallback`: at the end of every training episode, its sum of each
+  weighted reward term (``reward/<term>``), every episode SRPB metric of its last info
+  (``srpb/<metric>``) and its outcome (``episode/success``, ``episode/collision``,
+  ``episode/timeout``) go to the logger as means over the episodes of a rollout; SB3 by
+  itself logs only ``is_success``. Recent outcomes feed the progress bar.
+* :class:`ProgressCallback`: a tqdm bar of environment steps with the episodes, the success
+  and collision rates of the last 100 episodes and the time left.
+* :class:`PeriodicEvalCallback`: every ``eval_freq`` steps, saves a checkpoint (model and
+  ``VecNormalize`` statistics) and evaluates it with the harness of ``srpb-gym eval`` on
+  seeds never trained on; logs ``eval/...``, appends ``evaluations.csv`` and keeps the
+  best checkpoint in ``best/``.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import shutil
+import time
+from collections import deque
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
+from tqdm import tqdm
+
+from srpb_gym.metrics.episode import METRIC_NAMES
+from srpb_gym.reward import TERMS
+
+#: the seed of the first evaluation episode: far from the seeds of the test sets
+EVAL_SEED = 1_000_000
+#: metrics whose median over the evaluation episodes is logged and written
+EVAL_METRICS = ("m_psi", "m_fsi", "m_dir", "m_mef", "m_plin", "m_obs")
+EVAL_COLUMNS = ("step", "env", "episodes", "success", "collision", "timeout",
+                *EVAL_METRICS)  # fmt: skip
+
+
+class Outcomes:
+    """The outcomes of the most recent ``size`` training episodes (shared by callbacks)."""
+
+    def __init__(self, size: int = 100) -> None:
+        self.recent: deque[tuple[bool, bool]] = deque(maxlen=size)
+        self.episodes = 0
+
+    def add(self, success: bool, collision: bool) -> None:
+        self.recent.append((success, collision))
+        self.episodes += 1
+
+    def rates(self) -> tuple[float, float]:
+        """Success and collision rates of the recent episodes (NaN before the first)."""
+        if not self.recent:
+            return math.nan, math.nan
+        arr = np.array(self.recent, dtype=np.float64)
+        return float(arr[:, 0].mean()), float(arr[:, 1].mean())
+
+
+class EpisodeStatsCallback(BaseCallback):
+    """Logs every reward term, every ``srpb/*`` metric and the outcome of each episode."""
+
+    def __init__(self, outcomes: Outcomes | None = None) -> None:
+        super().__init__()
+        self.outcomes = outcomes if outcomes is not None else Outcomes()
+        self._keys = [f"reward_{t}" for t in TERMS]
+        self._sums: np.ndarray | None = None
+        self._metric_keys = [f"srpb/{m}" for m in METRIC_NAMES]
+
+    def _on_training_start(self) -> None:
+        self._sums = np.zeros((self.training_env.num_envs, len(TERMS)))
+
+    def _on_step(self) -> bool:
+        infos: Sequence[dict[str, Any]] = self.locals["infos"]
+        dones = self.locals["dones"]
+        sums = self._sums
+        assert sums is not None
+        for i, info in enumerate(infos):
+            row = sums[i]
+            for k, key in enumerate(self._keys):
+                row[k] += info[key]
+            if not dones[i]:
+                continue
+            for k, term in enumerate(TERMS):
+                self.logger.record_mean(f"reward/{term}", float(row[k]))
+            row[:] = 0.0
+            for key in self._metric_keys:
+                value = info.get(key)
+                if value is not None and math.isfinite(value):
+                    self.logger.record_mean(key, float(value))
+            success, collision = bool(info["is_success"]), bool(info["collision"])
+            timeout = bool(info.get("TimeLimit.truncated", False)) or not (success or collision)
+            self.logger.record_mean("episode/success", float(success))
+            self.logger.record_mean("episode/collision", float(collision))
+            self.logger.record_mean("episode/timeout", float(timeout and not collision))
+            self.outcomes.add(success, collision)
+        return True
+
+
+class ProgressCallback(BaseCallback):
+    """A progress bar of environment steps: episodes, recent success and collision rates,
+    and the time left (tqdm's estimate)."""
+
+    def __init__(self, total: int, outcomes: Outcomes, start: int = 0, every: float = 1.0) -> None:
+        super().__init__()
+        self.total, self.outcomes, self.start, self.every = total, outcomes, start, every
+        self.bar: Any = None
+        self._shown = 0.0
+
+    def _on_training_start(self) -> None:
+        self.bar = tqdm(total=self.total, initial=self.start, unit="step", dynamic_ncols=True,
+                        smoothing=0.05)  # fmt: skip
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.training_env.num_envs)
+        now = time.monotonic()
+        if now - self._shown >= self.every:
+            self._shown = now
+            success, collision = self.outcomes.rates()
+            self.bar.set_postfix_str(
+                f"episodes {self.outcomes.episodes}, success {_pct(success)}, "
+                f"collision {_pct(collision)} (last 100)", refresh=False)  # fmt: skip
+        return True
+
+    def _on_training_end(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+class WallClockLimit(BaseCallback):
+    """Stops training (as a finished run, the model saved) after ``seconds`` of wall time."""
+
+    def __init__(self, seconds: float) -> None:
+        super().__init__()
+        self.seconds = seconds
+        self.reached = False
+        self._start = 0.0
+
+    def _on_training_start(self) -> None:
+        self._start = time.monotonic()
+
+    def _on_step(self) -> bool:
+        self.reached = time.monotonic() - self._start >= self.seconds
+        return not self.reached
+
+
+def _pct(value: float) -> str:
+    return "-" if math.isnan(value) else f"{100 * value:.0f}%"
+
+
+class PeriodicEvalCallback(BaseCallback):
+    """Every ``eval_freq`` environment steps: a checkpoint in ``<run>/checkpoints/<step>``,
+    evaluated by the ``srpb-gym eval`` harness on ``env_ids`` (``episodes`` episodes each,
+    seeds from :data:`EVAL_SEED`) into ``<run>/eval/<step>``. The best checkpoint (highest
+    success rate over all evaluated environments, then lowest median ``m_psi``) is copied
+    to ``<run>/best``. Only the latest and the best checkpoints are kept."""
+
+    def __init__(self, run_dir: str, env_ids: Sequence[str], eval_freq: int, episodes: int,
+                 log: Any = None) -> None:  # fmt: skip
+        super().__init__()
+        self.run_dir, self.env_ids = run_dir, list(env_ids)
+        self.eval_freq, self.episodes = eval_freq, episodes
+        self.log = log or (lambda line: None)
+        self.best: tuple[float, float] | None = None
+        self._next = eval_freq
+        self._latest: str | None = None
+        self.csv_path = os.path.join(run_dir, "evaluations.csv")
+
+    def _on_training_start(self) -> None:
+        self._next = (self.num_timesteps // self.eval_freq + 1) * self.eval_freq
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self._next:
+            self._next += self.eval_freq
+            self.evaluate()
+        return True
+
+    def evaluate(self) -> dict[str, dict[str, float]]:
+        """Checkpoint and evaluate now; returns the figures by environment id."""
+        from srpb_gym.evaluation.harness import run_evaluation
+        from srpb_gym.evaluation.spec import resolve_config
+
+        step = self.num_timesteps
+        ckpt = os.path.join(self.run_dir, "checkpoints", f"step_{step:09d}")
+        save_checkpoint(self.model, ckpt)
+        config = resolve_config(
+            self.env_ids, policies=[os.path.join(ckpt, "model.zip")], episodes=self.episodes,
+            seed=EVAL_SEED, out=os.path.join(self.run_dir, "eval", f"step_{step:09d}"),
+            warmup=0, log=None,
+        )  # fmt: skip
+        outcome = run_evaluation(config, log=self.log)
+        figures = summarize_results(outcome.results)
+        rows = []
+        for env_id, fig in figures.items():
+            prefix = "eval" if len(figures) == 1 else f"eval/{env_id}"
+            for key, value in fig.items():
+                if key != "episodes" and math.isfinite(value):
+                    self.logger.record(f"{prefix}/{key}", value)
+            rows.append({"step": step, "env": env_id, **fig})
+        self._append(rows)
+        success = float(np.mean([f["success"] for f in figures.values()]))
+        psi = float(np.nanmean([f["m_psi"] for f in figures.values()]) if figures else math.nan)
+        self.logger.record("eval/mean_success", success)
+        score = (success, -psi if math.isfinite(psi) else -math.inf)
+        if self.best is None or score > self.best:
+            self.best = score
+            best = os.path.join(self.run_dir, "best")
+            shutil.rmtree(best, ignore_errors=True)
+            shutil.copytree(ckpt, best)
+        self._prune(ckpt)
+        self.log(f"eval at step {step}: success {100 * success:.0f}% "
+                 f"(best {100 * self.best[0]:.0f}%)")  # fmt: skip
+        return figures
+
+    def _append(self, rows: list[dict[str, Any]]) -> None:
+        new = not os.path.exists(self.csv_path)
+        with open(self.csv_path, "a", newline="", encoding="utf-8") as f:
+            writer = csv.DictWriter(f, fieldnames=EVAL_COLUMNS)
+            if new:
+                writer.writeheader()
+            for row in rows:
+                writer.writerow({k: _cell(row[k]) for k in EVAL_COLUMNS})
+
+    def _prune(self, latest: str) -> None:
+        if self._latest is not None and self._latest != latest:
+            shutil.rmtree(self._latest, ignore_errors=True)
+        self._latest = latest
+
+
+def _cell(value: Any) -> Any:
+    if isinstance(value, float):
+        return "" if math.isnan(value) else f"{value:.6g}"
+    return value
+
+
+def summarize_results(results: Sequence[Any]) -> dict[str, dict[str, float]]:
+    """Success, collision and timeout rates and the median of :data:`EVAL_METRICS`, by
+    environment, of the harness's episode results."""
+    out: dict[str, dict[str, float]] = {}
+    for env_id in dict.fromkeys(r.env for r in results):
+        rows = [r for r in results if r.env == env_id]
+        fig: dict[str, float] = {
+            "episodes": float(len(rows)),
+            "success": float(np.mean([r.is_success for r in rows])),
+            "collision": float(np.mean([r.collision for r in rows])),
+            "timeout": float(np.mean([r.timeout for r in rows])),
+        }
+        for m in EVAL_METRICS:
+            values = [r.metrics[m] for r in rows if math.isfinite(r.metrics.get(m, math.nan))]
+            fig[m] = float(np.median(values)) if values else math.nan
+        out[env_id] = fig
+    return out
+
+
+def save_checkpoint(model: Any, folder: str) -> None:
+    """``model.zip`` and (when training normalises) ``vecnormalize.pkl`` in ``folder``."""
+    os.makedirs(folder, exist_ok=True)
+    model.save(os.path.join(folder, "model.zip"))
+    venv = model.get_vec_normalize_env()
+    if venv is not None:
+        venv.save(os.path.join(folder, "vecnormalize.pkl"))

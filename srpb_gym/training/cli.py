@@ -1,0 +1,73 @@
+"""``srpb-gym train``: the command line of a PPO training run (also ``python -m
+training.train``). stable-baselines3 and torch are imported only when it runs."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from srpb_gym.errors import InputError
+from srpb_gym.training.config import parse_overrides, resolve
+
+INSTALL_HINT = (
+    'training needs stable-baselines3, torch and tensorboard: pip install "srpb-gym[train]"'
+)
+
+
+def add_train_command(subparsers: Any) -> None:
+    """Register ``train``: PPO on one environment id (or the mixture SRPB-Mix-v0)."""
+    p = subparsers.add_parser(
+        "train",
+        help="train a PPO policy",
+        description=(
+            "Train PPO (stable-baselines3) on a registered id or SRPB-Mix-v0, with the "
+            "hyperparameters of configs/train/ppo.yaml for that id (its 'default' entry "
+            "first), overridden by --hyperparams. The run folder gets model.zip, "
+            "vecnormalize.pkl, best/ (the best periodic evaluation), config.yaml, "
+            "command.txt, run.json (seed, versions, machine, wall time), progress.csv and "
+            "TensorBoard logs (tb/: every reward term, every srpb/* metric, eval/*). "
+            "Ctrl-C saves the model and stops. Evaluate with "
+            "`srpb-gym eval --policy RUN/model.zip`."
+        ),
+    )
+    p.add_argument("--env", required=True, metavar="ID", help="environment id, e.g. SRPB-Crowd-v0")
+    p.add_argument("--reward", default="srpb", metavar="PRESET",
+                   help="reward preset: srpb (default) or task")  # fmt: skip
+    p.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
+    p.add_argument("--steps", type=int, metavar="N", help="environment steps (n_timesteps)")
+    p.add_argument("--hyperparams", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="override hyperparameters: n_steps=1024 'net_arch=[64, 64]'")  # fmt: skip
+    p.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
+                   help="gym.make arguments: 'crowd={robot_reaction: 0.0}'")  # fmt: skip
+    p.add_argument("--config", metavar="FILE", help="hyperparameter file (default: the packaged "
+                   "configs/train/ppo.yaml)")  # fmt: skip
+    p.add_argument("--out", metavar="DIR", help="run folder (default runs/train/ID-PRESET-TIME)")
+    p.add_argument("--max-minutes", type=float, metavar="M",
+                   help="stop after M minutes of wall time (the model is saved)")  # fmt: skip
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run_train)
+
+
+def run_train(args: argparse.Namespace) -> int:
+    """Resolve the configuration, train, say where the run is."""
+    overrides = parse_overrides(args.hyperparams)
+    if args.steps is not None:
+        overrides["n_timesteps"] = args.steps
+    config = resolve(args.env, overrides, args.config)
+    env_kwargs = parse_overrides(args.env_kwargs, "--env-kwargs")
+    if args.seed < 0:
+        raise InputError(f"must be at least 0, got {args.seed}", key="--seed")
+    if args.max_minutes is not None and not args.max_minutes > 0:
+        raise InputError(f"must be > 0, got {args.max_minutes}", key="--max-minutes")
+    try:
+        from srpb_gym.training.run import train
+    except ImportError as exc:
+        raise InputError(f"{INSTALL_HINT} ({exc})") from None
+    result = train(args.env, config, preset=args.reward, seed=args.seed, out=args.out,
+                   env_kwargs=env_kwargs, progress=not args.no_progress,
+                   argv=getattr(args, "argv", ()), max_minutes=args.max_minutes,
+                   log=lambda line: print(f"srpb-gym: {line}", file=sys.stderr))  # fmt: skip
+    state = "interrupted" if result.interrupted else "finished"
+    print(f"{state} after {result.steps} steps in {result.wall_time:.0f} s; run in {result.out}")
+    return 130 if result.interrupted else 0

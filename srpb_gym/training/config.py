@@ -1,0 +1,233 @@
+"""Training hyperparameters: ``configs/train/ppo.yaml``, keyed by environment id.
+
+The file maps environment ids to :class:`TrainConfig` keys, in the style of the RL
+Baselines3 Zoo: the ``default`` entry applies to every id and an id's own entry overrides
+it key by key; :func:`resolve` then applies command-line overrides (``KEY=VALUE``, each
+value read as YAML, safely). Every key is checked: an unknown key, a value of the wrong
+type or out of range is an :class:`~srpb_gym.errors.InputError` naming the file, its line
+and the key (``ppo.yaml:12: SRPB-Crowd-v0.n_stesp: unknown key; valid keys: ...``), or the
+override (``--hyperparams: n_steps: must be >= 2, got 1``).
+
+Imports neither stable-baselines3 nor torch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from importlib.resources import files
+from typing import Any
+
+from srpb_gym.config import from_dict
+from srpb_gym.errors import InputError
+from srpb_gym.scenarios.yaml_io import read_file, read_yaml
+
+__all__ = ["DEFAULT_KEY", "TrainConfig", "config_file", "load_entries", "parse_overrides",
+           "resolve", "rl_zoo_document", "rl_zoo_entry"]  # fmt: skip
+
+DEFAULT_KEY = "default"
+VEC_ENVS = ("subproc", "dummy")
+ACTIVATIONS = ("tanh", "relu")
+#: the keys passed to ``stable_baselines3.PPO`` as they are
+PPO_KEYS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda",
+            "clip_range", "ent_coef", "vf_coef", "max_grad_norm")  # fmt: skip
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything a training run is made with, besides the environment and the seed.
+
+    ``n_timesteps``: environment steps of the run (all environments together);
+    ``n_envs``: environments stepped together, in one process each (``vec_env:
+    subproc``) or in the training process (``dummy``); ``normalize``: ``VecNormalize``
+    of observations and rewards (its statistics are saved beside the model);
+    ``policy``: the SB3 policy class name; ``net_arch``, ``activation_fn``: hidden layers
+    of the policy and value networks (separate networks of the same shape) and their
+    activation; the PPO keys (:data:`PPO_KEYS`) go to ``stable_baselines3.PPO`` as they
+    are; ``eval_freq``: environment steps between evaluations through the ``srpb-gym
+    eval`` harness (0: none), each over ``eval_episodes`` episodes; ``torch_threads``:
+    threads of torch in the training process (0: torch's default, one per core).
+    """
+
+    n_timesteps: int = 1_000_000
+    n_envs: int = 2
+    vec_env: str = "dummy"
+    normalize: bool = True
+    policy: str = "MlpPolicy"
+    learning_rate: float = 3e-4
+    n_steps: int = 512
+    batch_size: int = 256
+    n_epochs: int = 10
+    gamma: float = 0.99
+    gae_lambda: float = 0.95
+    clip_range: float = 0.2
+    ent_coef: float = 0.0
+    vf_coef: float = 0.5
+    max_grad_norm: float = 0.5
+    net_arch: tuple[int, ...] = (256, 256)
+    activation_fn: str = "tanh"
+    eval_freq: int = 50_000
+    eval_episodes: int = 20
+    torch_threads: int = 0
+
+    def __post_init__(self) -> None:
+        _at_least("n_timesteps", self.n_timesteps, 1)
+        _at_least("n_envs", self.n_envs, 1)
+        _at_least("n_steps", self.n_steps, 2)
+        _at_least("batch_size", self.batch_size, 2)
+        _at_least("n_epochs", self.n_epochs, 1)
+        _at_least("eval_freq", self.eval_freq, 0)
+        _at_least("eval_episodes", self.eval_episodes, 1)
+        _at_least("torch_threads", self.torch_threads, 0)
+        if self.vec_env not in VEC_ENVS:
+            raise ValueError(f"vec_env: choose one of {', '.join(VEC_ENVS)}, got {self.vec_env!r}")
+        if self.activation_fn not in ACTIVATIONS:
+            raise ValueError(f"activation_fn: choose one of {', '.join(ACTIVATIONS)}, got "
+                             f"{self.activation_fn!r}")  # fmt: skip
+        if self.policy != "MlpPolicy":
+            raise ValueError(f"policy: only MlpPolicy fits the flat observation, got "
+                             f"{self.policy!r}")  # fmt: skip
+        if not self.net_arch or min(self.net_arch) < 1:
+            raise ValueError(f"net_arch: expected a list of layer sizes >= 1, got "
+                             f"{list(self.net_arch)}")  # fmt: skip
+        for name in ("learning_rate", "clip_range", "max_grad_norm"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name}: must be > 0, got {getattr(self, name)!r}")
+        for name in ("gamma", "gae_lambda"):
+            if not 0.0 < getattr(self, name) <= 1.0:
+                raise ValueError(f"{name}: must be in (0, 1], got {getattr(self, name)!r}")
+        for name in ("ent_coef", "vf_coef"):
+            if getattr(self, name) < 0:
+                raise ValueError(f"{name}: must be >= 0, got {getattr(self, name)!r}")
+        if self.batch_size > self.n_steps * self.n_envs:
+            raise ValueError(f"batch_size: {self.batch_size} is more than the "
+                             f"{self.n_steps * self.n_envs} steps of one rollout "
+                             "(n_steps x n_envs)")  # fmt: skip
+
+    def ppo_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``stable_baselines3.PPO`` (without env, seed, logging)."""
+        from torch import nn
+
+        kwargs: dict[str, Any] = {k: getattr(self, k) for k in PPO_KEYS}
+        activation = {"tanh": nn.Tanh, "relu": nn.ReLU}[self.activation_fn]
+        kwargs["policy_kwargs"] = {"net_arch": {"pi": list(self.net_arch),
+                                                "vf": list(self.net_arch)},
+                                   "activation_fn": activation}  # fmt: skip
+        return kwargs
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain data (lists for tuples), as written into a run's ``config.yaml``."""
+        out = dataclasses.asdict(self)
+        out["net_arch"] = list(self.net_arch)
+        return out
+
+
+def _at_least(name: str, value: int, low: int) -> None:
+    if value < low:
+        raise ValueError(f"{name}: must be >= {low}, got {value!r}")
+
+
+def config_file(algo: str = "ppo") -> Any:
+    """The packaged hyperparameter file of ``algo`` (``configs/train/<algo>.yaml``)."""
+    return files("srpb_gym.train_configs") / f"{algo}.yaml"
+
+
+def load_entries(source: Any = None) -> tuple[dict[str, dict[str, Any]], dict[str, int], str]:
+    """The entries of a hyperparameter file (default: the packaged one), the line of every
+    dotted key and the file's name for errors."""
+    source = config_file() if source is None else source
+    name = str(source)
+    data, lines = read_yaml(read_file(source, name), name)
+    if not isinstance(data, Mapping):
+        raise InputError("expected a mapping of environment ids to hyperparameters", name)
+    for key, entry in data.items():
+        if not isinstance(entry, Mapping):
+            raise InputError(f"{key}: expected a mapping of hyperparameters, got {entry!r}",
+                             name, lines.get(str(key)))  # fmt: skip
+        _build({**data.get(DEFAULT_KEY, {}), **entry}, str(key), name, lines)  # all valid
+    return {str(k): dict(v) for k, v in data.items()}, lines, name
+
+
+def parse_overrides(items: Sequence[str], option: str = "--hyperparams") -> dict[str, Any]:
+    """``["n_steps=1024", "net_arch=[64, 64]"]`` -> ``{"n_steps": 1024, "net_arch": [64, 64]}``
+    (values read as YAML by the safe reader: plain data only)."""
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise InputError(f"expected KEY=VALUE, got {item!r}", key=option)
+        try:
+            value, _ = read_yaml(text, f"{option} {key}")
+        except InputError as exc:
+            raise InputError(exc.message, key=f"{option}: {key}") from None
+        out[key] = value
+    return out
+
+
+def resolve(
+    env_id: str, overrides: Mapping[str, Any] | None = None, source: Any = None
+) -> TrainConfig:
+    """The configuration of ``env_id``: the file's ``default`` entry, then the id's own
+    entry (if any), then ``overrides``."""
+    entries, lines, name = load_entries(source)
+    merged = {**entries.get(DEFAULT_KEY, {}), **entries.get(env_id, {})}
+    base = _build(merged, env_id if env_id in entries else DEFAULT_KEY, name, lines)
+    if not overrides:
+        return base
+    try:
+        return from_dict(TrainConfig, {**base.as_dict(), **dict(overrides)})
+    except InputError as exc:
+        raise InputError(exc.message, key=f"--hyperparams: {exc.key}" if exc.key else
+                         "--hyperparams") from None  # fmt: skip
+
+
+def _build(data: Mapping[str, Any], entry: str, name: str, lines: Mapping[str, int]) -> TrainConfig:
+    try:
+        return from_dict(TrainConfig, data, entry, name)
+    except InputError as exc:
+        key, message = exc.key or entry, exc.message
+        field_name, sep, rest = message.partition(": ")
+        if key == entry and sep and field_name in _FIELDS:  # a check across fields
+            key, message = f"{entry}.{field_name}", rest
+        line = lines.get(key)
+        if line is None:  # a value inherited from the default entry
+            line = lines.get(f"{DEFAULT_KEY}.{key.split('.', 1)[-1]}", lines.get(entry))
+        raise InputError(f"{key}: {message}", name, line) from None
+
+
+_FIELDS = frozenset(f.name for f in dataclasses.fields(TrainConfig))
+
+
+def rl_zoo_entry(config: TrainConfig, env_kwargs: Mapping[str, Any] | None = None) -> dict:
+    """``config`` as an entry of an RL Baselines3 Zoo hyperparameter file."""
+    activation = {"tanh": "nn.Tanh", "relu": "nn.ReLU"}[config.activation_fn]
+    arch = list(config.net_arch)
+    entry: dict[str, Any] = {
+        "n_envs": config.n_envs,
+        "n_timesteps": float(config.n_timesteps),
+        "policy": config.policy,
+        "normalize": config.normalize,
+        **{k: getattr(config, k) for k in PPO_KEYS},
+        "policy_kwargs": f"dict(net_arch=dict(pi={arch}, vf={arch}), activation_fn={activation})",
+    }
+    if env_kwargs:
+        entry["env_kwargs"] = dict(env_kwargs)
+    return entry
+
+
+def rl_zoo_document(source: Any = None) -> str:
+    """The RL Baselines3 Zoo hyperparameter file (YAML text) of every environment id of the
+    hyperparameter file (default: the packaged one), in its order."""
+    import yaml
+
+    entries, _, _ = load_entries(source)
+    doc = {env_id: rl_zoo_entry(resolve(env_id, source=source))
+           for env_id in entries if env_id != DEFAULT_KEY}  # fmt: skip
+    header = ("# Generated from configs/train/ppo.yaml by `python -m training.export_rl_zoo`;\n"
+              "# edit that file, not this one. Usage:\n"
+              "#   python -m rl_zoo3.train --algo ppo --env SRPB-Corridor-v0 "
+              "--gym-packages srpb_gym \\\n"
+              "#       --conf-file configs/train/rl_zoo/ppo.yml --vec-env subproc\n")  # fmt: skip
+    return header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)

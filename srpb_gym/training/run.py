@@ -1,0 +1,221 @@
+"""One PPO training run and its run folder.
+
+:func:`train` makes ``n_envs`` environments (``gym.make(env_id, reward=preset,
+**env_kwargs)`` in a ``Monitor``, one process each with ``vec_env: subproc``), wraps them
+in ``VecNormalize`` when the configuration says so, trains ``stable_baselines3.PPO`` with
+the callbacks of :mod:`srpb_gym.training.callbacks` and writes into the run folder:
+
+| file | what |
+| --- | --- |
+| ``model.zip``, ``vecnormalize.pkl`` | the final policy and its observation statistics |
+| ``best/`` | the checkpoint with the best periodic evaluation |
+| ``config.yaml`` | every resolved setting: env id, preset, env kwargs, seed, hyperparameters |
+| ``command.txt`` | the command line |
+| ``run.json`` | seed, versions, machine, steps done, wall time, interrupted or not |
+| ``progress.csv``, ``tb/`` | the SB3 logger (CSV and TensorBoard) |
+| ``evaluations.csv``, ``eval/`` | the periodic evaluations (``srpb-gym eval`` run folders) |
+
+Ctrl-C stops training after the current step and still saves a usable ``model.zip`` and
+``vecnormalize.pkl`` (``run.json`` says ``"interrupted": true``). Subprocess environments
+ignore Ctrl-C, so that only the training process handles it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import shlex
+import signal
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import yaml
+
+import srpb_gym  # noqa: F401  (registers the ids)
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation.harness import versions
+from srpb_gym.evaluation.outdir import check_out_dir
+from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.reward import preset_names
+from srpb_gym.training.callbacks import (
+    EpisodeStatsCallback,
+    Outcomes,
+    PeriodicEvalCallback,
+    ProgressCallback,
+    WallClockLimit,
+    save_checkpoint,
+)
+from srpb_gym.training.config import TrainConfig
+
+MIX_ID = "SRPB-Mix-v0"
+
+
+@dataclass
+class TrainResult:
+    """What a run produced: its folder, the steps done, the wall time [s] and whether
+    Ctrl-C stopped it."""
+
+    out: str
+    steps: int
+    wall_time: float
+    interrupted: bool
+
+
+def eval_env_ids(env_id: str) -> list[str]:
+    """The ids a model trained on ``env_id`` is evaluated on: the id itself, or every
+    packaged scenario's id for the mixture."""
+    return list(SCENARIO_IDS) if env_id == MIX_ID else [env_id]
+
+
+def default_out(env_id: str, preset: str, now: float | None = None) -> str:
+    stamp = time.strftime("%Y%m%d-%H%M%S", time.localtime(now))
+    return os.path.join("runs", "train", f"{env_id}-{preset}-{stamp}")
+
+
+def _env_factory(env_id: str, kwargs: Mapping[str, Any], quiet_sigint: bool) -> Callable:
+    def make() -> gym.Env:
+        from stable_baselines3.common.monitor import Monitor
+
+        if quiet_sigint:  # runs in the worker process: Ctrl-C is the trainer's
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+        return Monitor(gym.make(env_id, **kwargs), info_keywords=("is_success",))
+
+    return make
+
+
+def make_vec_env(env_id: str, config: TrainConfig, env_kwargs: Mapping[str, Any],
+                 seed: int) -> Any:  # fmt: skip
+    """The training ``VecEnv`` (seeded: environment i starts with ``seed + i``)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    subproc = config.vec_env == "subproc" and config.n_envs > 1
+    fns = [_env_factory(env_id, env_kwargs, subproc) for _ in range(config.n_envs)]
+    venv = SubprocVecEnv(fns, start_method="forkserver") if subproc else DummyVecEnv(fns)
+    venv.seed(seed)
+    return venv
+
+
+def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any]) -> None:
+    """Refuse an unknown id or preset, and env kwargs the environment refuses, now."""
+    if env_id not in gym.registry or not env_id.startswith("SRPB-"):
+        ids = sorted(k for k in gym.registry if k.startswith("SRPB-"))
+        raise InputError(f"unknown environment {env_id!r}; choose one of: {', '.join(ids)}",
+                         key="--env")  # fmt: skip
+    if preset not in preset_names():
+        raise InputError(f"choose one of: {', '.join(preset_names())}", key="--reward")
+    env = gym.make(env_id, reward=preset, **env_kwargs)
+    env.close()
+
+
+def train(
+    env_id: str,
+    config: TrainConfig,
+    *,
+    preset: str = "srpb",
+    seed: int = 0,
+    out: str | None = None,
+    env_kwargs: Mapping[str, Any] | None = None,
+    progress: bool = True,
+    argv: Sequence[str] = (),
+    log: Callable[[str], None] = print,
+    device: str = "cpu",
+    max_minutes: float | None = None,
+) -> TrainResult:
+    """Train PPO on ``env_id`` with reward preset ``preset``; see the module docstring.
+    ``max_minutes``: stop after this much wall time even if steps remain (``run.json``
+    then says ``"time_limit_reached": true``)."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import CallbackList
+    from stable_baselines3.common.logger import Logger, make_output_format
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    env_kwargs = dict(env_kwargs or {})
+    if "reward" in env_kwargs:
+        raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
+    check_env_args(env_id, preset, env_kwargs)
+    kwargs = {"reward": preset, **env_kwargs}
+    if config.torch_threads > 0:
+        import torch
+
+        torch.set_num_threads(config.torch_threads)
+    out = check_out_dir(out or default_out(env_id, preset))
+    os.makedirs(out, exist_ok=True)
+    _write_run_files(out, env_id, preset, kwargs, seed, config, argv)
+
+    venv = make_vec_env(env_id, config, kwargs, seed)
+    if config.normalize:
+        venv = VecNormalize(venv, gamma=config.gamma)
+    model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
+                **config.ppo_kwargs())  # fmt: skip
+    model.set_logger(
+        Logger(
+            out,
+            [
+                make_output_format("csv", out),
+                make_output_format("tensorboard", os.path.join(out, "tb")),
+            ],
+        )
+    )
+    outcomes = Outcomes()
+    callbacks: list[Any] = [EpisodeStatsCallback(outcomes)]
+    if progress:
+        callbacks.append(ProgressCallback(config.n_timesteps, outcomes))
+    if config.eval_freq > 0:
+        callbacks.append(PeriodicEvalCallback(out, eval_env_ids(env_id), config.eval_freq,
+                                              config.eval_episodes, log))  # fmt: skip
+    limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)
+    if limit is not None:
+        callbacks.append(limit)
+    started = time.perf_counter()
+    interrupted = False
+    try:
+        model.learn(config.n_timesteps, callback=CallbackList(callbacks), log_interval=1,
+                    tb_log_name="tb", progress_bar=False)  # fmt: skip
+    except KeyboardInterrupt:
+        interrupted = True
+        log(f"interrupted at step {model.num_timesteps}: saving the model")
+    finally:
+        wall = time.perf_counter() - started
+        save_checkpoint(model, out)
+        _finish_run_json(out, model.num_timesteps, wall, interrupted,
+                         limit is not None and limit.reached)  # fmt: skip
+        venv.close()
+    return TrainResult(out, int(model.num_timesteps), wall, interrupted)
+
+
+def _write_run_files(out: str, env_id: str, preset: str, env_kwargs: Mapping[str, Any],
+                     seed: int, config: TrainConfig, argv: Sequence[str]) -> None:  # fmt: skip
+    doc = {"algo": "PPO", "env": env_id, "reward": preset, "env_kwargs": dict(env_kwargs),
+           "seed": seed, "hyperparams": config.as_dict()}  # fmt: skip
+    with open(os.path.join(out, "config.yaml"), "w", encoding="utf-8") as f:
+        yaml.safe_dump(doc, f, sort_keys=False)
+    with open(os.path.join(out, "command.txt"), "w", encoding="utf-8") as f:
+        f.write(shlex.join(["srpb-gym", *argv]) + "\n")
+    run = {"env": env_id, "reward": preset, "seed": seed, "versions": versions(),
+           "machine": machine(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}  # fmt: skip
+    with open(os.path.join(out, "run.json"), "w", encoding="utf-8") as f:
+        json.dump(run, f, indent=2)
+
+
+def _finish_run_json(out: str, steps: int, wall: float, interrupted: bool,
+                     time_limit_reached: bool) -> None:  # fmt: skip
+    path = os.path.join(out, "run.json")
+    with open(path, encoding="utf-8") as f:
+        run = json.load(f)
+    run |= {"steps": int(steps), "wall_time_s": round(wall, 1), "interrupted": interrupted,
+            "time_limit_reached": time_limit_reached}  # fmt: skip
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(run, f, indent=2)
+
+
+def machine() -> dict[str, Any]:
+    """The machine a run trained on: processor, logical cores, operating system."""
+    import torch
+
+    return {"processor": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(), "system": platform.platform(),
+            "torch_threads": torch.get_num_threads()}  # fmt: skip

@@ -1,0 +1,110 @@
+"""Training hyperparameters: the packaged file, resolution by id, overrides, errors."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from srpb_gym.errors import InputError
+from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.training.config import (
+    TrainConfig,
+    load_entries,
+    parse_overrides,
+    resolve,
+    rl_zoo_document,
+)
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_packaged_file_has_an_entry_per_id_and_a_default():
+    entries, _, _ = load_entries()
+    assert "default" in entries
+    assert set(SCENARIO_IDS) | {"SRPB-Mix-v0"} <= set(entries)
+
+
+def test_resolution_order_default_then_id_then_overrides(tmp_path):
+    path = tmp_path / "ppo.yaml"
+    path.write_text("default:\n  n_steps: 256\n  batch_size: 64\nSRPB-Crowd-v0:\n"
+                    "  n_steps: 1024\n")  # fmt: skip
+    assert resolve("SRPB-Corridor-v0", source=path).n_steps == 256
+    assert resolve("SRPB-Crowd-v0", source=path).n_steps == 1024
+    over = resolve("SRPB-Crowd-v0", {"n_steps": 128, "net_arch": [64, 32]}, source=path)
+    assert over.n_steps == 128 and over.net_arch == (64, 32) and over.batch_size == 64
+    assert resolve("SRPB-Crowd-v0", source=path).gamma == TrainConfig().gamma
+
+
+def test_ppo_kwargs_build_the_networks():
+    pytest.importorskip("torch")
+    from torch import nn
+
+    kwargs = resolve("SRPB-Crowd-v0", {"activation_fn": "relu", "net_arch": [32]}).ppo_kwargs()
+    assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [32], "vf": [32]},
+                                       "activation_fn": nn.ReLU}  # fmt: skip
+    assert kwargs["n_steps"] == 512 and "n_timesteps" not in kwargs
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("default:\n  n_steps: 64\n  n_stesp: 3\n", "ppo.yaml:3: default.n_stesp: unknown key"),
+        ("SRPB-Crowd-v0:\n  gamma: 1.5\n", "ppo.yaml:2: SRPB-Crowd-v0.gamma: must be in (0, 1]"),
+        ("SRPB-Crowd-v0:\n  n_envs: two\n", "ppo.yaml:2: SRPB-Crowd-v0.n_envs: expected an"),
+        ("SRPB-Crowd-v0: 3\n", "ppo.yaml:1: SRPB-Crowd-v0: expected a mapping"),
+        ("- 1\n", "ppo.yaml: expected a mapping of environment ids"),
+        ("default:\n  vec_env: threads\n", "vec_env: choose one of subproc, dummy"),
+        ("default:\n  n_steps: [1\n", "ppo.yaml:3: invalid YAML"),
+    ],
+)
+def test_file_errors_name_file_line_and_key(tmp_path, text, expected):
+    path = tmp_path / "ppo.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError) as err:
+        resolve("SRPB-Crowd-v0", source=path)
+    assert expected in str(err.value).replace(str(tmp_path) + "/", "")
+
+
+@pytest.mark.parametrize(
+    ("items", "expected"),
+    [
+        (["learnin_rate=1e-4"], "--hyperparams: learnin_rate: unknown key"),
+        (["n_steps=1"], "--hyperparams: n_steps: must be >= 2, got 1"),
+        (["batch_size=4096"], "batch_size: 4096 is more than the 1024 steps of one rollout"),
+        (["net_arch=hello"], "--hyperparams: net_arch: expected a list"),
+        (["n_steps"], "--hyperparams: expected KEY=VALUE, got 'n_steps'"),
+        (["n_steps=[1"], "--hyperparams: n_steps:"),
+        (["learning_rate=.nan"], "--hyperparams: learning_rate: must be finite"),
+        (["policy=CnnPolicy"], "policy: only MlpPolicy fits the flat observation"),
+    ],
+)
+def test_override_errors(items, expected):
+    with pytest.raises(InputError) as err:
+        resolve("SRPB-Crowd-v0", parse_overrides(items))
+    assert expected in str(err.value)
+
+
+def test_overrides_are_read_as_plain_data_only():
+    assert parse_overrides(["net_arch=[64, 64]", "gamma=0.98"]) == {"net_arch": [64, 64],
+                                                                    "gamma": 0.98}  # fmt: skip
+    with pytest.raises(InputError, match=r"tag"):
+        parse_overrides(["n_steps=!!python/object/apply:os.system ['true']"])
+
+
+def test_rl_zoo_file_is_up_to_date():
+    shipped = (ROOT / "configs" / "train" / "rl_zoo" / "ppo.yml").read_text(encoding="utf-8")
+    assert shipped == rl_zoo_document()
+    entry = __import__("yaml").safe_load(shipped)["SRPB-Crowd-v0"]
+    config = resolve("SRPB-Crowd-v0")
+    assert entry["n_steps"] == config.n_steps and entry["n_timesteps"] == config.n_timesteps
+    assert entry["normalize"] is True and "net_arch=dict(pi=[256, 256]" in entry["policy_kwargs"]
+
+
+def test_export_script_check_mode():
+    run = subprocess.run([sys.executable, "-m", "training.export_rl_zoo", "--check"], cwd=ROOT,
+                         capture_output=True, text=True, check=False)  # fmt: skip
+    assert run.returncode == 0, run.stdout + run.stderr
+    assert "up to date" in run.stdout

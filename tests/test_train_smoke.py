@@ -1,0 +1,128 @@
+"""A short training run end to end: train, save, reload, evaluate with `srpb-gym eval`;
+Ctrl-C and the wall-clock limit still save a usable model."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import pytest
+import yaml
+
+pytest.importorskip("stable_baselines3")
+
+from srpb_gym.cli import main
+from srpb_gym.training import callbacks
+from srpb_gym.training.config import resolve
+from srpb_gym.training.run import train
+
+SMALL = ["n_steps=128", "batch_size=64", "n_epochs=2", "net_arch=[32, 32]", "eval_episodes=1"]
+
+
+def test_train_then_evaluate_the_run(tmp_path, capsys):
+    out = tmp_path / "run"
+    rc = main(["train", "--env", "SRPB-Corridor-v0", "--reward", "task", "--steps", "1024",
+               "--seed", "3", "--hyperparams", *SMALL, "eval_freq=512", "--out", str(out),
+               "--no-progress"])  # fmt: skip
+    assert rc == 0
+    assert "finished after 1024 steps" in capsys.readouterr().out
+    for name in (
+        "model.zip",
+        "vecnormalize.pkl",
+        "config.yaml",
+        "command.txt",
+        "run.json",
+        "progress.csv",
+        "evaluations.csv",
+        "best/model.zip",
+        "best/vecnormalize.pkl",
+    ):
+        assert (out / name).is_file(), name  # fmt: skip
+    assert list((out / "tb").iterdir()), "no TensorBoard events"
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["env"] == "SRPB-Corridor-v0" and config["reward"] == "task"
+    assert config["seed"] == 3 and config["hyperparams"]["n_steps"] == 128
+    run = json.loads((out / "run.json").read_text())
+    assert run["steps"] == 1024 and run["interrupted"] is False and "torch" in run["versions"]
+    assert run["machine"]["cpu_count"] >= 1
+    assert "--reward task" in (out / "command.txt").read_text()
+    with open(out / "progress.csv", newline="") as f:
+        header = next(csv.reader(f))
+    assert {"reward/progress", "reward/collision", "episode/success"} <= set(header)
+    assert any(h.startswith("srpb/m_psi") for h in header), "episode metrics not logged"
+    with open(out / "evaluations.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [int(r["step"]) for r in rows] == [512, 1024]
+    assert all(r["env"] == "SRPB-Corridor-v0" and r["episodes"] == "1" for r in rows)
+    assert (out / "eval" / "step_000000512" / "episodes.csv").is_file()
+
+    rc = main(["eval", "--env", "SRPB-Corridor-v0", "--policy", str(out / "model.zip"),
+               "--episodes", "1", "--warmup", "0", "--out", str(tmp_path / "eval")])  # fmt: skip
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    assert f"observations normalised with {out / 'vecnormalize.pkl'}" in captured.err
+    with open(tmp_path / "eval" / "episodes.csv", newline="") as f:
+        assert [r["planner"] for r in csv.DictReader(f)] == ["model"]
+
+
+def test_ctrl_c_saves_a_usable_model(tmp_path, monkeypatch):
+    stop_at = 300
+
+    def interrupt(self):
+        if self.num_timesteps >= stop_at:
+            raise KeyboardInterrupt
+        return True
+
+    monkeypatch.setattr(callbacks.EpisodeStatsCallback, "_on_step",
+                        lambda self: interrupt(self))  # fmt: skip
+    config = resolve("SRPB-Corridor-v0", {"n_steps": 128, "batch_size": 64, "n_epochs": 1,
+                                          "net_arch": [16], "eval_freq": 0})  # fmt: skip
+    result = train("SRPB-Corridor-v0", config, out=str(tmp_path / "run"), progress=False,
+                   log=lambda line: None)  # fmt: skip
+    assert result.interrupted and stop_at <= result.steps < 400
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["interrupted"] is True and run["steps"] == result.steps
+    from srpb_gym.planners.learned import LearnedPolicy
+
+    policy = LearnedPolicy(tmp_path / "run" / "model.zip",
+                           vecnormalize=tmp_path / "run" / "vecnormalize.pkl")  # fmt: skip
+    import gymnasium as gym
+
+    env = gym.make("SRPB-Corridor-v0")
+    obs, _ = env.reset(seed=0)
+    action = policy.act(obs, env.unwrapped.knowledge())
+    assert env.action_space.contains(action)
+    env.close()
+
+
+def test_wall_clock_limit_stops_as_finished(tmp_path):
+    small = {"n_steps": 64, "batch_size": 64, "n_envs": 1, "n_epochs": 1, "net_arch": [8],
+             "eval_freq": 0}  # fmt: skip
+    config = resolve("SRPB-Corridor-v0", small)
+    result = train("SRPB-Corridor-v0", config, out=str(tmp_path / "run"), progress=False,
+                   log=lambda line: None, max_minutes=1e-6)  # fmt: skip
+    assert not result.interrupted and result.steps < config.n_timesteps
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert run["time_limit_reached"] is True
+    assert (tmp_path / "run" / "model.zip").is_file()
+
+
+@pytest.mark.parametrize(
+    ("args", "expected"),
+    [
+        (["--env", "SRPB-Nowhere-v0"], "--env: unknown environment 'SRPB-Nowhere-v0'"),
+        (["--env", "SRPB-Crowd-v0", "--reward", "fast"], "--reward: choose one of: srpb, task"),
+        (
+            ["--env", "SRPB-Crowd-v0", "--hyperparams", "n_stesp=3"],
+            "--hyperparams: n_stesp: unknown key",
+        ),
+        (["--env", "SRPB-Crowd-v0", "--env-kwargs", "robot={radius: -1}"], "robot"),
+        (["--env", "SRPB-Crowd-v0", "--seed", "-1"], "--seed: must be at least 0"),
+        (["--env", "SRPB-Crowd-v0", "--max-minutes", "0"], "--max-minutes: must be > 0"),
+    ],
+)
+def test_bad_arguments_exit_2(args, expected, tmp_path, capsys):
+    assert main(["train", *args, "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("srpb-gym: error: ") and expected in err, err
+    assert not (tmp_path / "run").exists()
