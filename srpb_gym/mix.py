@@ -45,8 +45,8 @@ class SRPBMixEnv(SRPBNavEnv):
     """Human-aware navigation over a mixture of scenarios, one drawn per episode.
 
     ## Description
-    The environment of :class:`~srpb_gym.env.SRPBNavEnv` (same robot, sensors, dynamics,
-    reward and SRPB metrics) over several scenarios: every ``reset`` draws one scenario
+    The environment of :class:`~srpb_gym.env.SRPBNavEnv` (the same robot, dynamics, reward
+    and SRPB metrics) over several scenarios: every ``reset`` draws one scenario
     with the given weights and runs the episode in it. By default the five packaged
     scenarios corridor, fformation, crossing, crowd and doorway, with equal weights.
     Each scenario keeps its own simulation, sensors (the scenario's ``sensors`` section:
