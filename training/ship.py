@@ -1,0 +1,124 @@
+"""Package a trained run as a shipped model: ``srpb_gym/models/<name>/``.
+
+    python -m training.ship runs/train/ppo-crowd-srpb --name ppo-crowd-srpb
+
+Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--final`` takes
+the final model), evaluates it with the ``srpb-gym eval`` harness on ``--episodes`` unseen
+seeds from ``--seed`` (100 from 10000 by default; every packaged scenario for a model
+trained on SRPB-Mix-v0), and writes ``model.zip``, ``vecnormalize.pkl``,
+``evaluations.csv`` (the periodic evaluations of training), ``card.json`` and ``card.md``
+(environment id and version, reward preset, steps, wall time, machine, seed, command,
+hyperparameters and the test results).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import sys
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from srpb_gym.evaluation.harness import run_evaluation
+from srpb_gym.evaluation.spec import resolve_config
+from srpb_gym.training.callbacks import summarize_results
+from srpb_gym.training.run import eval_env_ids
+
+MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
+TEST_SEED, TEST_EPISODES = 10_000, 100
+
+
+def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path) -> dict:
+    """Test figures by env id of ``model`` (its vecnormalize.pkl beside it)."""
+    config = resolve_config(env_ids, policies=[str(model)], episodes=episodes, seed=seed,
+                            out=str(out), warmup=0, workers=1, log=None)  # fmt: skip
+    outcome = run_evaluation(config, log=lambda line: None)
+    return summarize_results(outcome.results)
+
+
+def card_markdown(name: str, card: dict[str, Any]) -> str:
+    t = card["training"]
+    lines = [
+        f"# {name}", "",
+        f"PPO (stable-baselines3) trained on `{card['env']}` with the `{card['reward']}` "
+        "reward preset. Load it by name: "
+        f"`srpb-gym eval --env {card['test']['envs'][0]} --policy {name}`.", "",
+        "| fact | value |", "| --- | --- |",
+        f"| environment | `{card['env']}` |",
+        f"| reward preset | `{card['reward']}` |",
+        f"| steps | {t['steps']:,} |",
+        f"| wall time | {t['wall_time_s'] / 60:.1f} min |",
+        f"| machine | {t['machine']['cpu_count']} cores ({t['machine']['processor']}), "
+        f"{t['machine']['system']}, torch threads {t['machine']['torch_threads']} |",
+        f"| seed | {card['seed']} |",
+        f"| checkpoint | {card['checkpoint']} |",
+        f"| command | `{t['command']}` |",
+        f"| versions | {', '.join(f'{k} {v}' for k, v in t['versions'].items())} |",
+        "", "Hyperparameters: " + ", ".join(f"`{k}={v}`" for k, v in card["hyperparams"].items()),
+        "", f"## Test: {card['test']['episodes']} episodes per scenario, seeds from "
+        f"{card['test']['seed']} (never trained on)", "",
+        "| scenario | success | collision | timeout | m_psi | m_fsi | m_dir | m_mef |",
+        "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
+    ]  # fmt: skip
+    for env_id, f in card["test"]["results"].items():
+        lines.append(f"| {env_id} | {100 * f['success']:.0f}% | {100 * f['collision']:.0f}% | "
+                     f"{100 * f['timeout']:.0f}% | {f['m_psi']:.3g} | {f['m_fsi']:.3g} | "
+                     f"{f['m_dir']:.3g} | {f['m_mef']:.3g} |")  # fmt: skip
+    lines += ["", "Medians of the SRPB metrics (%, s), `paper` semantics, from the tracked "
+              "people. Training curves: `evaluations.csv` (periodic evaluations, 20 "
+              "episodes each on seeds from 1000000)."]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[str, Any]:
+    checkpoint = run if final or not (run / "best" / "model.zip").is_file() else run / "best"
+    config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
+    info = json.loads((run / "run.json").read_text(encoding="utf-8"))
+    env_ids = eval_env_ids(config["env"])
+    work = run / "test"
+    shutil.rmtree(work, ignore_errors=True)
+    results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work)
+    target = MODELS_DIR / name
+    target.mkdir(parents=True, exist_ok=True)
+    for file in ("model.zip", "vecnormalize.pkl"):
+        shutil.copyfile(checkpoint / file, target / file)
+    if (run / "evaluations.csv").is_file():
+        shutil.copyfile(run / "evaluations.csv", target / "evaluations.csv")
+    card = {
+        "name": name, "algo": "PPO", "env": config["env"], "reward": config["reward"],
+        "env_kwargs": config.get("env_kwargs", {}), "seed": config["seed"],
+        "checkpoint": "best periodic evaluation" if checkpoint != run else "final",
+        "hyperparams": config["hyperparams"],
+        "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
+                     "machine": info["machine"], "versions": info["versions"],
+                     "command": (run / "command.txt").read_text(encoding="utf-8").strip(),
+                     "time_limit_reached": info.get("time_limit_reached", False)},
+        "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results},
+    }  # fmt: skip
+    (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
+    (target / "card.md").write_text(card_markdown(name, card), encoding="utf-8")
+    return card
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description="package a training run as a shipped model")
+    parser.add_argument("run", type=Path, help="the run folder of srpb-gym train")
+    parser.add_argument("--name", required=True, help="short name, e.g. ppo-crowd-srpb")
+    parser.add_argument("--episodes", type=int, default=TEST_EPISODES)
+    parser.add_argument("--seed", type=int, default=TEST_SEED)
+    parser.add_argument("--final", action="store_true", help="ship the final model, not best/")
+    args = parser.parse_args()
+    card = ship(args.run, args.name, args.episodes, args.seed, args.final)
+    for env_id, f in card["test"]["results"].items():
+        print(f"{args.name} on {env_id}: success {100 * f['success']:.0f}%, "
+              f"collision {100 * f['collision']:.0f}%, m_psi {f['m_psi']:.3g}, "
+              f"m_fsi {f['m_fsi']:.3g}")  # fmt: skip
+    print(f"wrote {MODELS_DIR / args.name}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
