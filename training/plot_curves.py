@@ -1,0 +1,75 @@
+"""Learning curves of the shipped models: success rate, collision rate and median m_psi of
+the periodic evaluations against training steps, both reward presets in one figure per
+scenario.
+
+    python -m training.plot_curves                 # every scenario with shipped models
+    python -m training.plot_curves --out docs/figures
+
+Reads ``srpb_gym/models/ppo-<scenario>-<preset>/evaluations.csv`` (a run folder's
+``evaluations.csv`` is the same file) and writes ``learning_<scenario>.png``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+from srpb_gym.evaluation.figures import pyplot
+
+MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
+PANELS = (("success", "success rate", 100.0), ("collision", "collision rate", 100.0),
+          ("m_psi", "median m_psi [%]", 1.0))  # fmt: skip
+
+
+def read_curve(path: Path) -> dict[str, list[float]]:
+    """Steps and each panel's values, averaged over the evaluated environments per step."""
+    by_step: dict[int, list[dict[str, str]]] = {}
+    with open(path, newline="", encoding="utf-8") as f:
+        for row in csv.DictReader(f):
+            by_step.setdefault(int(row["step"]), []).append(row)
+    out: dict[str, list[float]] = {"step": sorted(by_step)}
+    for key, _, scale in PANELS:
+        out[key] = []
+        for step in out["step"]:
+            values = [float(r[key]) for r in by_step[step] if r[key] != ""]
+            out[key].append(scale * sum(values) / len(values) if values else float("nan"))
+    return out
+
+
+def plot(scenario: str, curves: dict[str, dict[str, list[float]]], out: Path) -> Path:
+    plt = pyplot()
+    fig, axes = plt.subplots(1, len(PANELS), figsize=(12, 3.2), constrained_layout=True)
+    for ax, (key, label, _) in zip(axes, PANELS):
+        for preset, curve in sorted(curves.items()):
+            ax.plot(curve["step"], curve[key], marker="o", markersize=3, label=preset)
+        ax.set_xlabel("training steps")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(title="reward preset")
+    fig.suptitle(f"PPO on {scenario}: periodic evaluations (20 episodes, unseen seeds)")
+    path = out / f"learning_{scenario}.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--models", type=Path, default=MODELS_DIR)
+    parser.add_argument("--out", type=Path, default=Path("docs/figures"))
+    args = parser.parse_args()
+    curves: dict[str, dict[str, dict[str, list[float]]]] = {}
+    for folder in sorted(args.models.glob("ppo-*-*")):
+        _, scenario, preset = folder.name.split("-", 2)
+        if (folder / "evaluations.csv").is_file():
+            curves.setdefault(scenario, {})[preset] = read_curve(folder / "evaluations.csv")
+    args.out.mkdir(parents=True, exist_ok=True)
+    for scenario, by_preset in curves.items():
+        print(f"wrote {plot(scenario, by_preset, args.out)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
