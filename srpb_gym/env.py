@@ -88,7 +88,10 @@ class SRPBNavEnv(gym.Env):
     ``osc``, ``bwd``, ``iprot``, ``chc``, ``psi``, ``fsi``, ``dir``. ``reward="srpb"``
     (default) or ``"task"`` picks a preset; ``reward_weights`` overrides weights by name.
     ``info["reward_<term>"]`` holds each weighted term (they sum to the reward) and
-    ``info["srpb_step/<term>"]`` the unweighted SRPB terms.
+    ``info["srpb_step/<term>"]`` the unweighted SRPB terms. The presets cannot be gamed by
+    crashing: every shaping term at its worst on every step of the time limit costs less
+    than the collision penalty (:func:`srpb_gym.reward.shaping_bound`); weights or settings
+    that break this bound get a :class:`~srpb_gym.reward.RewardGameableWarning` at reset.
 
     ## Starting State
     Start and goal poses, people, their routes and parameters are sampled from the
@@ -137,7 +140,11 @@ class SRPBNavEnv(gym.Env):
       and metric values as they were: the episode metrics are only in the last ``info``
       (earlier steps used to carry placeholder 0.0 values) and at every truncation,
       ``TimeLimit``'s included; ``robot_circumradius`` and ``robot_max_speed`` come from
-      the robot's settings (the same values for the default robot).
+      the robot's settings (the same values for the default robot). Before the first
+      release the reward presets were re-weighted so that no termination pays (collision
+      -25, shaping bounded) and the fformation, crowd and doorway scenarios were reworked
+      so that every SRPB metric is exercised: returns and metrics of earlier v0 builds
+      are not comparable with these.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
