@@ -1,8 +1,10 @@
 """srpb-gym: human-aware robot navigation environments scored by the SRPB metrics.
 
 Importing the package registers the Gymnasium ids ``SRPB-Corridor-v0``,
-``SRPB-FFormation-v0``, ``SRPB-Crossing-v0``, ``SRPB-Crowd-v0``, ``SRPB-Doorway-v0`` and
-``SRPB-Custom-v0`` (``gym.make("SRPB-Custom-v0", scenario="my_lab.yaml")``).
+``SRPB-FFormation-v0``, ``SRPB-Crossing-v0``, ``SRPB-Crowd-v0``, ``SRPB-Doorway-v0``,
+``SRPB-Mix-v0`` (one scenario drawn per reset: ``gym.make("SRPB-Mix-v0",
+scenarios=["corridor", "crowd"], weights=[1, 3])``) and ``SRPB-Custom-v0``
+(``gym.make("SRPB-Custom-v0", scenario="my_lab.yaml")``).
 ``srpb_gym.parallel_env(scenario="crowd", n_robots=3)`` makes the PettingZoo multi-robot
 environment (:mod:`srpb_gym.pettingzoo_env`; ``srpb_gym.aec_env(...)`` its AEC version).
 """

@@ -258,9 +258,8 @@ def _json_number(value: float | None) -> float | str | None:
 # ---------------------------------------------------------------------------- eval
 def add_eval_command(subparsers: Any) -> None:
     """Register ``eval``: run planners and policies on scenarios, write the results."""
-    from srpb_gym.evaluation.spec import DEFAULT_WARMUP
+    from srpb_gym.evaluation.spec import DEFAULT_WARMUP, ENV_IDS
     from srpb_gym.metrics.params import PRESETS, SEMANTICS
-    from srpb_gym.registration import SCENARIO_IDS
 
     p = subparsers.add_parser(
         "eval",
@@ -272,7 +271,7 @@ def add_eval_command(subparsers: Any) -> None:
             "the configuration into --out. Without --env/--planner/--policy: "
             "SRPB-Corridor-v0 with every registered planner, 5 episodes."
         ),
-        epilog=f"environment ids: {', '.join(SCENARIO_IDS)}; or a scenario file "
+        epilog=f"environment ids: {', '.join(ENV_IDS)}; or a scenario file "
         "(envs/my_lab.yaml), run as SRPB-Custom-v0 and labelled by its scenario name",
     )
     many = {"action": "extend", "nargs": "+"}

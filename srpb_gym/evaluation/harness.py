@@ -166,7 +166,11 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
     for env_id in config.envs:
         env = config.make_env(env_id)
         base, spec = env.unwrapped, gym.spec(config.gym_id(env_id))
-        entry = {"id": env_id, "scenario": base.scenario.name}
+        entry: dict[str, Any] = {"id": env_id, "scenario": base.scenario.name}
+        params: dict[str, Any] = base.params.as_dict()
+        if hasattr(base, "params_of"):  # SRPB-Mix-v0: every scenario it draws, and its weight
+            entry = {"id": env_id, "scenarios": dict(zip(base.scenarios, base.weights))}
+            params = {name: base.params_of(name).as_dict() for name in base.scenarios}
         if config.scenario_file(env_id) is not None:
             entry |= {"gym_id": spec.id, "scenario_file": config.scenario_file(env_id)}
         kwargs = {**spec.kwargs, **config.env_kwargs(env_id)}
@@ -175,7 +179,7 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
             kwargs["n_robots"] = config.robots
         envs.append(entry | {"kwargs": kwargs,
                              "max_episode_steps": spec.max_episode_steps,
-                             "metric_params": base.params.as_dict()})  # fmt: skip
+                             "metric_params": params})  # fmt: skip
         env.close()
     return {
         "envs": envs,
@@ -225,13 +229,23 @@ def draw_figures(
     envs = {e["id"]: e for e in resolved["envs"]}
     paths = []
     for env_id, planners in stats.group(results).items():
-        for planner, rows in planners.items():
-            path = os.path.join(config.out, f"trajectories_{env_id}_{planner}.png")
-            count = f"{len(rows)} episodes"
-            if config.robots > 1:
-                count = f"{len({r.seed for r in rows})} episodes, {config.robots} robots"
-            _trajectories(config, envs[env_id], rows, f"{env_id}: {planner} ({count})", path)
-            paths.append(path)
+        mix = "scenarios" in envs[env_id]
+        for planner, all_rows in planners.items():
+            by_scenario = {"": all_rows}
+            if mix:  # a plot per scenario drawn, over its walls
+                by_scenario = {}
+                for r in all_rows:
+                    by_scenario.setdefault(r.scenario, []).append(r)
+            for scenario, rows in by_scenario.items():
+                label = f"{env_id}_{planner}_{scenario}" if mix else f"{env_id}_{planner}"
+                path = os.path.join(config.out, f"trajectories_{label}.png")
+                count = f"{len(rows)} episodes"
+                if config.robots > 1:
+                    count = f"{len({r.seed for r in rows})} episodes, {config.robots} robots"
+                what = f"{env_id} ({scenario})" if mix else env_id
+                _trajectories(config, envs[env_id], rows, f"{what}: {planner} ({count})", path,
+                              scenario or None)  # fmt: skip
+                paths.append(path)
         summary = stats.summarize([r for rows in planners.values() for r in rows])[env_id]
         path = os.path.join(config.out, f"bars_{env_id}.png")
         figures.bar_chart(summary, f"{env_id}: median and interquartile range", path)
@@ -239,16 +253,19 @@ def draw_figures(
     return paths
 
 
-def _trajectories(config: EvalConfig, env: dict, rows: list, title: str, path: str) -> None:
+def _trajectories(
+    config: EvalConfig, env: dict, rows: list, title: str, path: str, scenario: str | None = None
+) -> None:
     from srpb_gym.evaluation import figures
     from srpb_gym.metrics import MetricParams, SRPBMetricWarning
     from srpb_gym.metrics.io_npz import load_record
     from srpb_gym.scenarios import load_scenario
 
     records = [load_record(os.path.join(config.out, r.record)) for r in rows]
-    walls = load_scenario(env.get("scenario_file") or env["scenario"]).walls
+    walls = load_scenario(scenario or env.get("scenario_file") or env["scenario"]).walls
+    params = env["metric_params"][scenario] if scenario else env["metric_params"]
     people = [not r.robot for r in rows]  # an episode's people once: as robot 0 saw them
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", SRPBMetricWarning)
-        figures.trajectory_plot(records, walls, title, path, MetricParams(**env["metric_params"]),
+        figures.trajectory_plot(records, walls, title, path, MetricParams(**params),
                                 config.semantics, people)  # fmt: skip

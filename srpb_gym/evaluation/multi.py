@@ -128,6 +128,6 @@ def run_multi_task(config: EvalConfig, pair: tuple[Any, dict[str, Planner]], tas
         results.append(EpisodeResult(
             task.env, name, task.seed, bool(info["is_success"]), out["collision"],
             out["timeout"], {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
-            os.path.relpath(record, config.out), clip, robot,
+            os.path.relpath(record, config.out), clip, robot, config.scenario_name(task.env),
         ))  # fmt: skip
     return results

@@ -167,7 +167,7 @@ def finished_episodes(
             robot = "" if row.robot is None else f" / robot {row.robot}"
             raise InputError(f"episode {row.env} / {row.planner} / seed {row.seed}{robot} is "
                              f"not part of this run's configuration", path, line)  # fmt: skip
-        record = config.record_path(*key, row.robot)
+        record = config.record_path(*key, row.robot, row.scenario or None)
         if not os.path.isfile(record):
             raise InputError(f"the record of this finished episode is missing: {record}",
                              path, line)  # fmt: skip

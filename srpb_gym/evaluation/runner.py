@@ -28,6 +28,7 @@ from typing import Any
 from srpb_gym.evaluation.spec import EvalConfig
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.planners import Planner
+from srpb_gym.registration import MIX_ID
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,8 @@ class Task:
 class EpisodeResult:
     """One finished episode: its outcome and every SRPB metric (``info["srpb/<m>"]`` of
     the last step). ``record``: the ``.npz`` record, relative to the output folder.
-    ``robot``: the robot's index in a multi-robot episode, ``None`` in a single-robot run."""
+    ``robot``: the robot's index in a multi-robot episode, ``None`` in a single-robot run.
+    ``scenario``: the episode's scenario (for ``SRPB-Mix-v0`` the one drawn)."""
 
     env: str
     planner: str
@@ -58,6 +60,7 @@ class EpisodeResult:
     record: str = ""
     video: str = ""
     robot: int | None = None
+    scenario: str = ""
 
 
 def tasks_of(config: EvalConfig) -> list[Task]:
@@ -182,7 +185,7 @@ class Workspace:
         result = EpisodeResult(
             task.env, name, task.seed, bool(info["is_success"]), out["collision"], out["timeout"],
             {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
-            os.path.relpath(record, self.config.out),
+            os.path.relpath(record, self.config.out), scenario=base.scenario.name,
         )  # fmt: skip
         if video is not None:
             result.video = os.path.relpath(video.close(), self.config.out)
@@ -306,7 +309,8 @@ def remove_unfinished(config: EvalConfig, tasks: Sequence[Task]) -> None:
         name = config.planners[task.planner].name
         folder = glob.escape(config.record_dir(task.env, name))
         videos = glob.escape(os.path.join(config.out, "videos"))
-        stem = glob.escape(f"{config.scenario_name(task.env)}_seed{task.seed}")
+        scenario = "*" if task.env == MIX_ID else glob.escape(config.scenario_name(task.env))
+        stem = f"{scenario}_seed{task.seed}"  # SRPB-Mix-v0: whichever scenario it drew
         patterns = (os.path.join(folder, f"{stem}[._]*"),
                     os.path.join(videos, f"{task.env}_{name}_seed{task.seed}.*"))  # fmt: skip
         for path in (p for pattern in patterns for p in glob.glob(pattern)):

@@ -5,9 +5,10 @@
 a run never starts with an argument that would fail halfway. Planners are described by
 :class:`PlannerSpec` (plain data), so worker processes can build their own.
 
-An environment is a registered id (``SRPB-Corridor-v0``) or a scenario file
-(``envs/my_lab.yaml``), run as ``SRPB-Custom-v0`` with that scenario and labelled by the
-scenario's name in tables, file names and ``episodes.csv``.
+An environment is a registered id (``SRPB-Corridor-v0``, or ``SRPB-Mix-v0``, whose every
+episode draws one of the packaged scenarios) or a scenario file (``envs/my_lab.yaml``), run
+as ``SRPB-Custom-v0`` with that scenario and labelled by the scenario's name in tables, file
+names and ``episodes.csv``.
 """
 
 from __future__ import annotations
@@ -27,9 +28,11 @@ import numpy as np
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
 from srpb_gym.planners import PLANNERS, Planner, check_settings, make_planner, planner_config
-from srpb_gym.registration import CUSTOM_ID, SCENARIO_IDS
+from srpb_gym.registration import CUSTOM_ID, MIX_ID, SCENARIO_IDS
 
 DEFAULT_ENVS: tuple[str, ...] = ("SRPB-Corridor-v0",)
+ENV_IDS: tuple[str, ...] = (*SCENARIO_IDS, MIX_ID)
+"""The registered ids an evaluation runs (a scenario file runs as ``SRPB-Custom-v0``)."""
 DEFAULT_EPISODES = 5
 DEFAULT_WARMUP = 100
 """Untimed control steps each planner takes before its first timed episode, per process:
@@ -129,12 +132,19 @@ class EvalConfig:
         return env if self.scenario_file(env) is None else CUSTOM_ID
 
     def scenario_name(self, env: str) -> str:
-        """The scenario's name, which the episode files are named after."""
+        """The scenario's name, which the episode files are named after (``SRPB-Mix-v0``:
+        none, each episode is named after the scenario it draws)."""
+        if env == MIX_ID:
+            raise ValueError(f"{MIX_ID} names each episode after the scenario it draws")
         return SCENARIO_IDS[env] if self.scenario_file(env) is None else env
 
-    def record_path(self, env: str, planner: str, seed: int, robot: int | None = None) -> str:
-        """The ``.npz`` record of one episode (of robot ``robot`` in a multi-robot run)."""
-        stem = f"{self.scenario_name(env)}_seed{seed}"
+    def record_path(
+        self, env: str, planner: str, seed: int, robot: int | None = None,
+        scenario: str | None = None,
+    ) -> str:  # fmt: skip
+        """The ``.npz`` record of one episode (of robot ``robot`` in a multi-robot run) of
+        the scenario ``scenario`` (default: the environment's; needed for ``SRPB-Mix-v0``)."""
+        stem = f"{scenario or self.scenario_name(env)}_seed{seed}"
         stem += "" if robot is None else f"_robot{robot}"
         return os.path.join(self.record_dir(env, planner), f"{stem}.npz")
 
@@ -258,13 +268,13 @@ def resolve_envs(items: Sequence[str]) -> tuple[list[str], list[tuple[str, str]]
     labels: list[str] = []
     files: list[tuple[str, str]] = []
     for item in _unique(items):
-        if item in SCENARIO_IDS:
+        if item in ENV_IDS:
             labels.append(item)
             continue
         if not (item.endswith(SCENARIO_SUFFIXES) or "/" in item or os.sep in item
                 or os.path.exists(item)):  # fmt: skip
             raise InputError(f"unknown environment id {item!r}; choose one of: "
-                             f"{', '.join(SCENARIO_IDS)}, or give a scenario file (.yaml)",
+                             f"{', '.join(ENV_IDS)}, or give a scenario file (.yaml)",
                              key="--env")  # fmt: skip
         if not os.path.isfile(item):
             why = "is a folder, not a scenario file" if os.path.isdir(item) else "no such file"
@@ -287,6 +297,12 @@ def _check_robots(robots: int, env_ids: Sequence[str], files: Mapping[str, str])
     if isinstance(robots, bool) or not isinstance(robots, int) or robots < 1:
         raise InputError(f"must be at least 1, got {robots}", key="--robots")
     for env in env_ids:
+        if env == MIX_ID:
+            if robots > 1:
+                raise InputError(f"{MIX_ID} runs one robot per episode, got {robots}; "
+                                 f"evaluate several robots on single-scenario ids",
+                                 key="--robots")  # fmt: skip
+            continue
         try:
             load_scenario(files.get(env, SCENARIO_IDS.get(env, env))).robot_specs(robots)
         except InputError as exc:

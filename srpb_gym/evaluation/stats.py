@@ -2,13 +2,15 @@
 
 ``episodes.csv`` holds one row per episode: ``env``, ``planner``, ``seed``, ``is_success``,
 ``collision``, ``timeout`` (0/1), then every metric of :data:`METRIC_NAMES` at full
-precision (``repr`` of the float, ``nan`` when undefined). A multi-robot run has one row
-per (episode, robot), with a ``robot`` column (the robot's index) after ``seed``. The
-tables follow the SRPB paper's Table 4: one per scenario, rows = metrics with units (after
-the episode count and the success, collision and timeout rates in %), columns = planners,
-cells = median over the episodes with the interquartile range, ``12.3 [10.1-14.0]``. In a
-multi-robot run each planner has a column per robot (``dwa/robot_0``, ...) and a pooled
-column (``dwa/pooled``: every robot's episodes together).
+precision (``repr`` of the float, ``nan`` when undefined), then ``scenario``: the episode's
+scenario (for ``SRPB-Mix-v0`` the one drawn; files without the column read as empty). A
+multi-robot run has one row per (episode, robot), with a ``robot`` column (the robot's
+index) after ``seed``. The tables follow the SRPB paper's Table 4: one per scenario, rows =
+metrics with units (after the episode count and the success, collision and timeout rates
+in %), columns = planners, cells = median over the episodes with the interquartile range,
+``12.3 [10.1-14.0]``. In a multi-robot run each planner has a column per robot
+(``dwa/robot_0``, ...) and a pooled column (``dwa/pooled``: every robot's episodes
+together).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
 from srpb_gym.metrics.io_native import read_text
 
 CSV_COLUMNS: tuple[str, ...] = (
-    "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES,
+    "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES, "scenario",
 )  # fmt: skip
 ROBOT_COLUMNS: tuple[str, ...] = (*CSV_COLUMNS[:3], "robot", *CSV_COLUMNS[3:])
 """The columns of a multi-robot run's ``episodes.csv``."""
@@ -49,7 +51,8 @@ def csv_row(result: EpisodeResult, robots: bool = False) -> list[str]:
     flags = [str(int(v)) for v in (result.is_success, result.collision, result.timeout)]
     values = [repr(float(result.metrics[m])) for m in METRIC_NAMES]
     robot = ["" if result.robot is None else str(result.robot)] if robots else []
-    return [result.env, result.planner, str(result.seed), *robot, *flags, *values]
+    return [result.env, result.planner, str(result.seed), *robot, *flags, *values,
+            result.scenario]  # fmt: skip
 
 
 class EpisodeWriter:
@@ -155,7 +158,9 @@ def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> Epi
     if robot and not (robot.isdigit() and robot.isascii()):
         raise InputError(f"column robot is {robot!r}, expected a robot index (0, 1, ...)",
                          path, line)  # fmt: skip
-    return EpisodeResult(env, planner, seed, *flags, metrics, robot=int(robot) if robot else None)
+    scenario = row[col["scenario"]] if "scenario" in col else ""
+    return EpisodeResult(env, planner, seed, *flags, metrics, robot=int(robot) if robot else None,
+                         scenario=scenario)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------- statistics

@@ -79,3 +79,28 @@ def test_video_hint_names_what_videos_need(monkeypatch):
     message = figures.video_support()
     assert message is not None and "Pillow (GIF) or imageio and imageio-ffmpeg (MP4)" in message
     assert not hasattr(figures, "write_video")
+
+
+def test_the_mixture_reports_each_episodes_scenario(tmp_path, capsys):
+    import gymnasium as gym
+
+    out = tmp_path / "mix"
+    assert main(["eval", "--env", "SRPB-Mix-v0", "--planner", "go-to-goal", "--episodes", "3",
+                 "--warmup", "0", "--out", str(out)]) == 0  # fmt: skip
+    drawn = [gym.make("SRPB-Mix-v0").reset(seed=s)[1]["scenario"] for s in range(3)]
+    assert [r["scenario"] for r in _rows(out)] == drawn
+    env = json.loads((out / "config.json").read_text())["envs"][0]
+    assert (
+        list(env["scenarios"])
+        == list(env["metric_params"])
+        == ["corridor", "fformation", "crossing", "crowd", "doorway"]
+    )
+    for seed, scenario in enumerate(drawn):
+        assert (
+            out / "episodes" / "SRPB-Mix-v0" / "go-to-goal" / f"{scenario}_seed{seed}.npz"
+        ).is_file()
+        assert (out / f"trajectories_SRPB-Mix-v0_go-to-goal_{scenario}.png").is_file()
+    capsys.readouterr()
+    assert main(["eval", "--env", "SRPB-Mix-v0", "--robots", "2",
+                 "--out", str(tmp_path / "o")]) == 2  # fmt: skip
+    assert "--robots: SRPB-Mix-v0 runs one robot per episode" in _error(capsys)
