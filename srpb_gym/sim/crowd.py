@@ -32,15 +32,25 @@ class SocialForceConfig:
     """Parameters of the crowd model (SI units; accelerations in m/s^2).
 
     Walkers (Helbing & Molnar 1995, Helbing et al. 2000): relaxation to the preferred velocity
-    within the relaxation time; repulsion ``A exp((r_ij - d_ij) / B)`` from people, weighted
-    by the anisotropy ``lambda + (1 - lambda)(1 + cos phi) / 2``; walls and robots repel in the
-    same form with their own A, B (robots scaled by the person's robot reaction); speed cap
-    ``max_speed_factor`` x preferred speed. ``d_ij`` is the pair's smallest distance within
-    ``anticipation_time`` at constant velocities (collision prediction, Zanlungo et al. 2011;
-    0: the circular specification). The ``evasion`` share of a braking repulsion is turned
-    sideways (to the right when dead ahead; along a wall as the walker slides, else to its
-    goal) so that head-on encounters resolve. Walkers go around F-formations (Kendon 1990)
-    as around a disc that covers the O-space and the members (``ospace_strength``).
+    towards the next waypoint within the relaxation time; repulsion ``A exp((r_ij - d_ij) /
+    B)`` from people, weighted by the anisotropy ``lambda + (1 - lambda)(1 + cos phi) / 2``;
+    walls and robots repel in the same form with their own A, B (robots scaled by the
+    robot reaction, below); speed cap ``max_speed_factor`` x preferred speed. ``d_ij`` is
+    the pair's smallest distance within ``anticipation_time`` at constant velocities
+    (collision prediction, Zanlungo et al. 2011; 0: the circular specification). The
+    ``evasion`` share of a braking repulsion is turned sideways (to the right when dead
+    ahead; along a wall as the walker slides, else to its goal) so that head-on encounters
+    resolve. A wall that the straight way to the next waypoint passes with the body clear of
+    it pushes only sideways, without braking (a walker lined up with a door goes through
+    it; the scenario's routes lead around walls through such openings). Walkers go around
+    F-formations (Kendon 1990) as around a disc that covers the O-space and the members
+    (``ospace_strength``).
+
+    Routes: a waypoint is reached within ``waypoint_tolerance``, or once past it within
+    ``waypoint_pass_radius``. Where the leg after it clears the walls for the body, the
+    walker goes on only when it can walk straight on from where it stands; a walker pushed
+    off such a leg, to where a wall is in the way to its waypoint, heads back towards the
+    leg's start until the way is clear again.
 
     Walking groups (Moussaid et al. 2010): gaze ``-beta1 alpha v`` (alpha: head rotation that
     keeps the group's centre of mass within ``group_view_angle``), attraction ``beta2`` to it
@@ -50,6 +60,14 @@ class SocialForceConfig:
     Standing people hold an anchor (spring ``hold_stiffness``, ``hold_damping``); members'
     targets wander as an Ornstein-Uhlenbeck process (``jitter_time``). Members hold their
     place when a robot comes close unless ``formation_robot_reaction`` > 0.
+
+    Robot reaction: the repulsion from robots is scaled, for each person, by its own
+    reaction times ``robot_reaction``. A walker's own reaction is its per-person
+    ``robot_reaction`` drawn from the scenario (also while it waits or stands at its route's
+    end); an F-formation member's is ``formation_robot_reaction``. ``robot_reaction``
+    (default 1) multiplies them all; 0 makes robots invisible to every person (the
+    "invisible robot" of CrowdNav): people neither evade nor make room for a robot, though
+    they still collide with it physically. Values above 1 make everyone more wary.
     """
 
     person_strength: float = 2.1  # A, Helbing & Molnar 1995 (V0 = 2.1 m^2/s^2)
@@ -76,6 +94,7 @@ class SocialForceConfig:
     standing_max_speed: float = 0.6  # [m/s] speed cap of formation members
     jitter_time: float = 2.0  # [s] time constant of the formation members' jitter
     formation_robot_reaction: float = 0.0  # robot reaction of formation members
+    robot_reaction: float = 1.0  # multiplies every person's robot reaction (0: robots unseen)
     yaw_time_constant: float = 0.3  # [s] walkers' heading follows their motion
     yaw_min_speed: float = 0.1  # [m/s] below this a walker keeps its heading
 

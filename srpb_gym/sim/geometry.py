@@ -28,7 +28,9 @@ from numba import njit
 from srpb_gym.angles import wrap_angle
 
 __all__ = [
+    "leg_clearance",
     "line_of_sight",
+    "path_clearance",
     "point_obstacle_distance",
     "point_segment_distance",
     "ray_circle_distance",
@@ -36,6 +38,9 @@ __all__ = [
     "raycast",
     "raycast_beams",
     "segment_clear",
+    "segment_distance",
+    "wall_between",
+    "wall_within",
 ]
 
 PI = math.pi
@@ -397,3 +402,96 @@ def line_of_sight(
     for t in range(tx.shape[0]):
         out[t] = segment_clear(ox, oy, tx[t], ty[t], segs, circles, skip, target_circle[t])
     return out
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def segment_distance(
+    ax: float, ay: float, bx: float, by: float, x0: float, y0: float, x1: float, y1: float
+) -> float:
+    """Smallest distance [m] between segment (ax, ay)-(bx, by) and segment (x0, y0)-(x1, y1):
+    0 when they meet (crossing or touching), else that of the nearest end point."""
+    dx = bx - ax
+    dy = by - ay
+    ex = x1 - x0
+    ey = y1 - y0
+    denom = dx * ey - dy * ex
+    if denom != 0.0:
+        wx = x0 - ax
+        wy = y0 - ay
+        t = (wx * ey - wy * ex) / denom
+        u = (wx * dy - wy * dx) / denom
+        if 0.0 <= t <= 1.0 and 0.0 <= u <= 1.0:
+            return 0.0
+    return min(
+        point_segment_distance(ax, ay, x0, y0, x1, y1),
+        point_segment_distance(bx, by, x0, y0, x1, y1),
+        point_segment_distance(x0, y0, ax, ay, bx, by),
+        point_segment_distance(x1, y1, ax, ay, bx, by),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def path_clearance(
+    ax: np.ndarray, ay: np.ndarray, bx: np.ndarray, by: np.ndarray, segs: np.ndarray,
+    out: np.ndarray,
+) -> np.ndarray:  # fmt: skip
+    """``out[m]``: the smallest distance [m] from segment (ax[m], ay[m])-(bx[m], by[m]) to
+    the wall segments ``segs`` (0 where it meets one, ``inf`` without walls); a zero-length
+    segment gives its point's distance. Returns ``out``."""
+    for m in range(ax.shape[0]):
+        best = math.inf
+        for s in range(segs.shape[0]):
+            d = segment_distance(ax[m], ay[m], bx[m], by[m], segs[s, 0], segs[s, 1], segs[s, 2],
+                                 segs[s, 3])  # fmt: skip
+            if d < best:
+                best = d
+        out[m] = best
+    return out
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def wall_between(ax: float, ay: float, bx: float, by: float, segs: np.ndarray) -> bool:
+    """Whether the open segment from (ax, ay) to (bx, by) meets any wall segment of
+    ``segs`` (crossing or touching it): the two points do not see each other."""
+    dx = bx - ax
+    dy = by - ay
+    if dx == 0.0 and dy == 0.0:
+        return False
+    for s in range(segs.shape[0]):
+        if _crosses_segment(ax, ay, dx, dy, segs[s, 0], segs[s, 1], segs[s, 2], segs[s, 3]):
+            return True
+    return False
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def wall_within(ax: float, ay: float, bx: float, by: float, reach: float, segs: np.ndarray) -> bool:
+    """Whether any wall segment of ``segs`` comes closer than ``reach`` [m] to the segment
+    from (ax, ay) to (bx, by): a disc of radius ``reach`` cannot sweep along it."""
+    lox = min(ax, bx) - reach
+    hix = max(ax, bx) + reach
+    loy = min(ay, by) - reach
+    hiy = max(ay, by) + reach
+    for s in range(segs.shape[0]):
+        x0, y0, x1, y1 = segs[s, 0], segs[s, 1], segs[s, 2], segs[s, 3]
+        if max(x0, x1) < lox or min(x0, x1) > hix or max(y0, y1) < loy or min(y0, y1) > hiy:
+            continue
+        if segment_distance(ax, ay, bx, by, x0, y0, x1, y1) < reach:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def leg_clearance(
+    ax: float, ay: float, bx: float, by: float, segs: np.ndarray
+) -> tuple[float, float]:
+    """The smallest distance [m] from the segment (ax, ay)-(bx, by) to the wall segments
+    ``segs``, and the smaller of its two end points' distances to them (``inf`` without
+    walls)."""
+    leg = math.inf
+    ends = math.inf
+    for s in range(segs.shape[0]):
+        x0, y0, x1, y1 = segs[s, 0], segs[s, 1], segs[s, 2], segs[s, 3]
+        leg = min(leg, segment_distance(ax, ay, bx, by, x0, y0, x1, y1))
+        ends = min(ends, point_segment_distance(ax, ay, x0, y0, x1, y1),
+                   point_segment_distance(bx, by, x0, y0, x1, y1))  # fmt: skip
+    return leg, ends

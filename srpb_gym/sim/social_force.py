@@ -15,6 +15,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
+from srpb_gym.sim.geometry import segment_distance, wall_within
 
 WAITING, WALKING, STOPPED, STANDING = 0, 1, 2, 3  # values of Crowd.state
 CUTOFF = 10.0  # repulsions are dropped beyond this many ranges B (factor exp(-10))
@@ -26,7 +27,8 @@ GROUP, FORMATION, RSTART, RLEN, LOOP = range(5)
 # Indices of the parameters in the vector handed to the kernels: the order of the fields of
 # SocialForceConfig (a test checks).
 (A_P, B_P, LAM, T_ANT, EVADE, RANGE, A_W, B_W, A_R, B_R, A_O, _VMAX, BETA1, BETA2, BETA3, VIEW,
- MARGIN, TOL, PASS, K_HOLD, C_HOLD, _VSTAND, T_JIT, F_REACT, T_YAW, V_YAW) = range(26)  # fmt: skip
+ MARGIN, TOL, PASS, K_HOLD, C_HOLD, _VSTAND, T_JIT, F_REACT, R_REACT, T_YAW,
+ V_YAW) = range(27)  # fmt: skip
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -91,8 +93,11 @@ def _social(dx: float, dy: float, dvx: float, dvy: float, rsum: float, A: float,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _advance_routes(t, pos, vel, props, links, cursor, state, route, anchor, leg_from, prm):
-    """Start delayed walkers, move cursors past reached waypoints, stop finished walkers."""
+def _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anchor, leg_from,
+                    walls, prm):  # fmt: skip
+    """Start delayed walkers, move cursors past reached waypoints, stop finished walkers. A
+    waypoint from which the body can walk the next leg straight, clear of the walls, is
+    passed only once it can go straight on from where it is too."""
     omega = math.sqrt(prm[K_HOLD])
     for i in range(pos.shape[0]):
         if state[i] == WAITING and t >= props[i, DELAY]:
@@ -106,6 +111,13 @@ def _advance_routes(t, pos, vel, props, links, cursor, state, route, anchor, leg
         past = dx * (wx - leg_from[i, 0]) + dy * (wy - leg_from[i, 1]) > 0.0
         if d >= prm[TOL] and not (past and d < prm[PASS]):
             continue
+        last = cursor[i] + 1 >= links[i, RLEN]
+        if not (last and not links[i, LOOP]):  # the next leg, if walkable, from here too
+            n = links[i, RSTART] + (0 if last else cursor[i] + 1)
+            nx, ny, r = route[n, 0], route[n, 1], radius[i]
+            if (wall_within(pos[i, 0], pos[i, 1], nx, ny, r, walls)
+                    and not wall_within(wx, wy, nx, ny, r, walls)):  # fmt: skip
+                continue
         leg_from[i, 0], leg_from[i, 1] = wx, wy
         cursor[i] += 1
         if cursor[i] < links[i, RLEN]:
@@ -184,16 +196,25 @@ def _people_force(i, ex, ey, pos, vel, radius, links, state, fcenter, fradius, p
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _wall_force(px, py, vx, vy, r, ex, ey, walls, prm):
-    """Repulsion of a walker at (px, py) moving at (vx, vy) from all walls; a braking wall
-    turns it along the wall the way it already slides, else towards its goal, else right."""
+def _wall_force(px, py, vx, vy, r, ex, ey, dw, walls, prm):
+    """Repulsion of a walker at (px, py) moving at (vx, vy) from all walls, heading e to its
+    waypoint ``dw`` metres ahead. A wall that the straight way to the waypoint passes with
+    the body clear of it only pushes sideways (its braking part is dropped: people walk
+    through a door they are lined up with); a wall in the way brakes and turns the walker
+    along it the way it already slides, else towards its goal, else to the right."""
     fx = fy = 0.0
     reach = r + CUTOFF * prm[B_W]
+    tx, ty = px + dw * ex, py + dw * ey
     for s in range(walls.shape[0]):
         d, nx, ny = _wall_offset(px, py, walls, s, reach)
         if d == math.inf:
             continue
         mag = prm[A_W] * math.exp((r - d) / prm[B_W])
+        brake = -mag * (nx * ex + ny * ey)
+        if brake > 0.0 and segment_distance(px, py, tx, ty, walls[s, 0], walls[s, 1],
+                                            walls[s, 2], walls[s, 3]) >= r:  # fmt: skip
+            fx, fy = fx + mag * nx + brake * ex, fy + mag * ny + brake * ey
+            continue
         along = -ny * vx + nx * vy  # tangent (-ny, nx): to the right when facing the wall
         if abs(along) < SLIDE_SPEED:
             along = -ny * ex + nx * ey
@@ -222,19 +243,29 @@ def _group_force(i, ex, ey, pos, vel, links, gsum, prm):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, route, gsum,
-                     fcenter, fradius, walls, rxy, rvel, rrad, prm):  # fmt: skip
-    """Social-force velocity of walker i after dt (exact relaxation, forces held)."""
+def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, route, leg_from,
+                     gsum, fcenter, fradius, walls, rxy, rvel, rrad, prm):  # fmt: skip
+    """Social-force velocity of walker i after dt (exact relaxation, forces held). A walker
+    pushed off a leg of its route that the body can walk straight, to where a wall is in
+    the way to its waypoint, heads back towards the leg's start if it can go straight there."""
     k = links[i, RSTART] + cursor[i]
-    wx, wy = route[k, 0] - pos[i, 0], route[k, 1] - pos[i, 1]
+    wx, wy = route[k, 0], route[k, 1]
+    px, py, r = pos[i, 0], pos[i, 1], radius[i]
+    lx, ly = leg_from[i, 0], leg_from[i, 1]
+    if (wall_within(px, py, wx, wy, r, walls) and not wall_within(lx, ly, wx, wy, r, walls)
+            and not wall_within(px, py, lx, ly, r, walls)):  # fmt: skip
+        wx, wy = lx, ly
+    wx, wy = wx - pos[i, 0], wy - pos[i, 1]
     dw = math.hypot(wx, wy)
     ex, ey = (wx / dw, wy / dw) if dw > 1e-9 else (math.cos(yaw[i]), math.sin(yaw[i]))
     fx, fy = _people_force(i, ex, ey, pos, vel, radius, links, state, fcenter, fradius, prm)
-    gx, gy = _wall_force(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i], ex, ey, walls, prm)
+    gx, gy = _wall_force(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i], ex, ey, dw,
+                         walls, prm)  # fmt: skip
     fx, fy = fx + gx, fy + gy
-    if props[i, REACTION] > 0.0:
+    reaction = props[i, REACTION] * prm[R_REACT]
+    if reaction > 0.0:
         gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm)
-        fx, fy = fx + props[i, REACTION] * gx, fy + props[i, REACTION] * gy
+        fx, fy = fx + reaction * gx, fy + reaction * gy
     gx, gy = _group_force(i, ex, ey, pos, vel, links, gsum, prm)
     tau = props[i, TAU]
     tx, ty = props[i, V0] * ex + tau * (fx + gx), props[i, V0] * ey + tau * (fy + gy)
@@ -252,6 +283,7 @@ def _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit, rxy,
         m = i - (pos.shape[0] - jit.shape[0])
         ex, ey = ex + jit[m, 0], ey + jit[m, 1]
         reaction = prm[F_REACT]
+    reaction *= prm[R_REACT]
     ax = ay = 0.0
     if reaction > 0.0:
         ax, ay = _robot_force(i, pos, vel, radius, math.cos(yaw[i]), math.sin(yaw[i]), 0.0,
@@ -281,7 +313,8 @@ def _limit(vx, vy, vmax, px, py, r, dt, walls):
 def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cursor, state,
          route, anchor, leg_from, jit, noise, fcenter, fradius, gsum, prm, out):  # fmt: skip
     """One update: states, group centres, members' (x, y, yaw) jitter, then all velocities."""
-    _advance_routes(t, pos, vel, props, links, cursor, state, route, anchor, leg_from, prm)
+    _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anchor, leg_from,
+                    walls, prm)  # fmt: skip
     gsum[:] = 0.0  # sum of x, y and count of the walking members of each group
     for i in range(pos.shape[0]):
         g = links[i, GROUP]
@@ -308,6 +341,7 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
                 cursor,
                 state,
                 route,
+                leg_from,
                 gsum,
                 fcenter,
                 fradius,
