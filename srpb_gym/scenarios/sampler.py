@@ -15,6 +15,13 @@
    then every unit's placement and parameters. People keep ``GAP`` from walls, each other
    and formation circles and ``ROBOT_GAP`` from every robot start.
 
+A leg of a person's route that the body cannot walk in a straight line (it would come
+closer than ``GAP`` to a wall) gets the corners of the shortest way around the walls
+inserted (:class:`~srpb_gym.scenarios.space.RouteGraph`, computed once per scenario); a
+fixed route is first walked that way for the largest body radius, and its people are
+placed along it. This takes nothing from ``rng``. A unit whose route has no way around the
+walls does not fit and is drawn again.
+
 Random placements are retried up to ``MAX_TRIES`` times per robot point or unit; several
 robots are redrawn together up to ``ROBOTS_TRIES`` times, a route entry as a whole up to
 ``ENTRY_TRIES`` times. Then a located :class:`~srpb_gym.errors.InputError`
@@ -23,6 +30,7 @@ names the entry that could not be placed.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 
@@ -38,7 +46,7 @@ from srpb_gym.scenarios.schema import (
     WalkerEntry,
     YawSpec,
 )
-from srpb_gym.scenarios.space import FreeSpace, Point, free_space
+from srpb_gym.scenarios.space import FreeSpace, Point, RouteGraph, free_space, route_graph
 from srpb_gym.sim.layout import EpisodeLayout, FormationLayout, PersonLayout, RobotLayout
 
 MAX_TRIES = 200  # random placements per robot pose, formation or walking unit
@@ -74,6 +82,14 @@ class _Context:
         self.discs = _Discs()
         self.people: list[PersonLayout] = []
         self.groups = 0
+        self._routes: RouteGraph | None = None
+
+    @property
+    def routes(self) -> RouteGraph:
+        """The scenario's walking routes around walls (computed on first use)."""
+        if self._routes is None:
+            self._routes = routes_of(self.scenario)
+        return self._routes
 
     def uniform(self, bounds: Range) -> float:
         lo, hi = bounds
@@ -128,6 +144,17 @@ def free_space_of(scenario: Scenario) -> FreeSpace:
     robot = scenario.robot
     return free_space(scenario.bounds, scenario.walls, scenario.obstacles,
                       scenario.robot_radius, robot.start.place, robot.goal.place)  # fmt: skip
+
+
+def routes_of(scenario: Scenario) -> RouteGraph:
+    """The walking routes of a scenario's world for the largest body radius of its people:
+    the ones attached by :func:`~srpb_gym.scenarios.validate.validate`, else computed now
+    (milliseconds)."""
+    radius = scenario.largest_person_radius
+    routes = scenario.routes
+    if routes is not None and routes.radius == radius:
+        return routes
+    return route_graph(scenario.bounds, scenario.walls, scenario.obstacles, radius, GAP)
 
 
 def _yaw(ctx: _Context, spec: YawSpec, towards: float) -> float:
@@ -247,7 +274,10 @@ def _unit(
     ``None`` when a member does not fit (nothing is committed then)."""
     p = entry.params
     radii = [ctx.uniform(p.radius) for _ in range(size)]
-    target = route[0] if math.dist(anchor, route[0]) > 1e-9 else route[min(1, len(route) - 1)]
+    walked = _walk(ctx, anchor, route, entry.loop, max(radii))
+    if walked is None:
+        return None
+    target = walked[0] if math.dist(anchor, walked[0]) > 1e-9 else walked[min(1, len(walked) - 1)]
     heading = math.atan2(target[1] - anchor[1], target[0] - anchor[0])
     side = (-math.sin(heading), math.cos(heading))
     step = 2.0 * max(radii) + GROUP_GAP
@@ -257,13 +287,17 @@ def _unit(
     for k, r in enumerate(radii):
         offset = (k - 0.5 * (size - 1)) * step
         x, y = anchor[0] + offset * side[0], anchor[1] + offset * side[1]
-        if not ctx.fits(x, y, r):
+        own = walked
+        if offset != 0.0:
+            own = _walk(ctx, (x, y), _member_route(ctx, entry, route, offset, r, (x, y)),
+                        entry.loop, r)  # fmt: skip
+        if own is None or not ctx.fits(x, y, r):
             ctx.discs.truncate(mark)
             return None
         ctx.discs.add(x, y, r)
         members.append(PersonLayout(
-            position=(x, y), yaw=heading, route=_member_route(ctx, entry, route, offset, r, (x, y)),
-            loop=entry.loop, preferred_speed=speed, radius=r,
+            position=(x, y), yaw=heading, route=own, loop=entry.loop, preferred_speed=speed,
+            radius=r,
             relaxation_time=ctx.uniform(p.relaxation_time),
             robot_reaction=ctx.uniform(p.robot_reaction), group=group, start_delay=delay,
         ))  # fmt: skip
@@ -293,6 +327,43 @@ def _member_route(
     return tuple(own)
 
 
+def _polyline(
+    ctx: _Context, points: tuple[Point, ...], loop: bool, radius: float
+) -> list[Point] | None:
+    """``points`` with the corners around walls inserted into every leg (and, for a loop,
+    the corners of the leg back to the first point appended), for a body of ``radius``
+    [m]; ``None`` when a leg has no way around the walls."""
+    out = [points[0]]
+    legs = list(itertools.pairwise(points))
+    if loop and len(points) > 1:
+        legs.append((points[-1], points[0]))
+    for k, (a, b) in enumerate(legs):
+        corners = ctx.routes.route(a, b, radius)
+        if corners is None:
+            return None
+        out.extend(corners)
+        if k < len(points) - 1:
+            out.append(b)
+    return out
+
+
+def _walk(
+    ctx: _Context, start: Point, route: tuple[Point, ...], loop: bool, radius: float
+) -> tuple[Point, ...] | None:
+    """A person's route from ``start`` with the corners around walls (:func:`_polyline`);
+    a looping route repeats from its first corner, so the leg from ``start`` must turn at
+    the same corners as the leg that closes the loop (``None`` otherwise, or without a way
+    around the walls)."""
+    walked = _polyline(ctx, (start, *route), False, radius)
+    if walked is None:
+        return None
+    if loop and len(route) > 1:
+        closing = ctx.routes.route(route[-1], route[0], radius)
+        if closing is None or tuple(walked[1 : 2 + len(closing)]) != (*closing, route[0]):
+            return None
+    return tuple(walked[1:])
+
+
 def _spawn_entry(ctx: _Context, entry: WalkerEntry) -> None:
     assert entry.spawn is not None and entry.goal is not None
     for number in range(ctx.integer(entry.count)):
@@ -313,8 +384,8 @@ def _spawn_entry(ctx: _Context, entry: WalkerEntry) -> None:
             raise ctx.scenario.error(
                 entry.key,
                 f"could not place {what} {number + 1} clear of walls, other people, F-formations "
-                f"and the robot starts in {MAX_TRIES} tries; enlarge the spawn region or lower "
-                "count",
+                f"and the robot starts, with a way around the walls to its goal, in {MAX_TRIES} "
+                "tries; enlarge the spawn region or lower count",
             )
 
 
@@ -337,6 +408,11 @@ def _try_route_entry(ctx: _Context, entry: WalkerEntry) -> bool:
     route = np.asarray(entry.route, dtype=np.float64)
     if entry.waypoint_jitter > 0:
         route = route + ctx.rng.uniform(-entry.waypoint_jitter, entry.waypoint_jitter, route.shape)
+    points = tuple((float(x), float(y)) for x, y in route)
+    walked = _polyline(ctx, points, entry.loop, entry.params.radius[1])
+    if walked is None:
+        return False
+    route = np.asarray(walked, dtype=np.float64)
     units, spacing = ctx.integer(entry.count), ctx.uniform(entry.spacing)
     headway, delay = ctx.uniform(entry.headway), ctx.uniform(entry.start_delay)
     for k in range(units):  # k = 0 leads, the last unit starts at the first waypoint

@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
-from srpb_gym.scenarios.space import Bounds, FreeSpace, Place, Point
+from srpb_gym.scenarios.space import Bounds, FreeSpace, Place, Point, RouteGraph
 
 # m, circumradius of the default robot (``srpb_gym.sim.robot.RobotConfig().radius``); a
 # scenario is validated and sampled for the radius given to ``load_scenario``
@@ -157,7 +157,8 @@ class Scenario:
     ``robot_radius``: the radius [m] of the robots the scenario is validated and sampled for
     (their clearance from walls, the reachability of their goals).
     ``source`` and ``lines`` locate keys in the file for error messages;
-    ``free_space`` (for ``robot_radius``) is precomputed by
+    ``free_space`` (for ``robot_radius``) and ``routes`` (the walking routes around walls,
+    for the largest body radius of the people) are precomputed by
     :func:`~srpb_gym.scenarios.validate.validate`.
     """
 
@@ -176,6 +177,12 @@ class Scenario:
     source: str | None = None
     lines: Mapping[str, int] = field(default_factory=dict, repr=False)
     free_space: FreeSpace | None = field(default=None, repr=False)
+    routes: RouteGraph | None = field(default=None, repr=False)
+
+    @property
+    def largest_person_radius(self) -> float:
+        """The largest body radius [m] of the walking people (0 without people)."""
+        return max((entry.params.radius[1] for entry in self.people), default=0.0)
 
     def error(self, key: str, message: str) -> InputError:
         """An :class:`InputError` about ``key`` located in the scenario file."""

@@ -19,8 +19,10 @@ raising a located :class:`~srpb_gym.errors.InputError`:
   place is clear of walls;
 * every route waypoint and ``via`` point, and the centres of spawn and goal regions, are at
   least the largest body radius plus 5 cm (plus the waypoint jitter) away from walls (the
-  F-formation circle, likewise, keeps 5 cm), and no leg of a
-  route (taken between region centres for spawn entries) crosses a wall;
+  F-formation circle, likewise, keeps 5 cm), and every leg of a route (taken between
+  region centres for spawn entries) can be walked by the largest body, in a straight line
+  or around the walls (the scenario's :class:`~srpb_gym.scenarios.space.RouteGraph`,
+  attached to the returned scenario);
 * a route is long enough for its people to queue along it;
 * sensor specs are accepted by the perception configs (when those modules are present);
 * a few trial layouts can be drawn, for one robot and for all the ``robots`` entries (so
@@ -38,7 +40,7 @@ from dataclasses import replace
 import numpy as np
 
 from srpb_gym.errors import InputError
-from srpb_gym.scenarios.sampler import free_space_of, sample
+from srpb_gym.scenarios.sampler import free_space_of, routes_of, sample
 from srpb_gym.scenarios.schema import (
     PLACEMENT_GAP,
     FormationSpec,
@@ -47,7 +49,7 @@ from srpb_gym.scenarios.schema import (
     WalkerEntry,
     checked_robot_radius,
 )
-from srpb_gym.scenarios.space import FreeSpace, Place, Point, crosses_walls
+from srpb_gym.scenarios.space import FreeSpace, Place, Point, RouteGraph
 
 TRIAL_SEEDS = 8  # layouts drawn at load time
 SENSOR_CONFIGS = (
@@ -70,7 +72,7 @@ def validate(
     """
     radius = scenario.robot_radius if robot_radius is None else robot_radius
     radius = checked_robot_radius(radius, scenario.source)
-    scenario = replace(scenario, robot_radius=radius, free_space=None)
+    scenario = replace(scenario, robot_radius=radius, free_space=None, routes=None)
     if not scenario.time_limit > 0:
         raise scenario.error("time_limit", f"must be > 0, got {scenario.time_limit}")
     _check_places(scenario)
@@ -81,10 +83,12 @@ def validate(
         _check_robot(scenario, space, f"robots[{i}]", spec, labels)
     for formation in scenario.formations:
         _check_formation(scenario, space, formation)
-    for entry in scenario.people:
-        _check_walkers(scenario, space, entry)
+    routes = routes_of(scenario) if scenario.people else None
+    if routes is not None:
+        for entry in scenario.people:
+            _check_walkers(scenario, space, routes, entry)
     _check_sensors(scenario)
-    prepared = replace(scenario, free_space=space)
+    prepared = replace(scenario, free_space=space, routes=routes)
     for seed in range(trials):
         sample(prepared, np.random.default_rng(seed))
         if len(scenario.robots) > 1:
@@ -177,7 +181,9 @@ def _check_point(
         )
 
 
-def _check_walkers(scenario: Scenario, space: FreeSpace, entry: WalkerEntry) -> None:
+def _check_walkers(
+    scenario: Scenario, space: FreeSpace, routes: RouteGraph, entry: WalkerEntry
+) -> None:
     radius, key = entry.params.radius[1], entry.key
     if entry.is_route:
         margin = radius + PLACEMENT_GAP + entry.waypoint_jitter * math.sqrt(2.0)
@@ -204,9 +210,12 @@ def _check_walkers(scenario: Scenario, space: FreeSpace, entry: WalkerEntry) -> 
     if entry.loop and entry.is_route:
         legs.append((keyed[-1], keyed[0]))
     for (_, a), (k, b) in legs:
-        if crosses_walls(a, b, scenario.walls):
+        if routes.route(a, b, radius) is None:
             raise scenario.error(
-                k, f"the leg from ({a[0]:g}, {a[1]:g}) to ({b[0]:g}, {b[1]:g}) crosses a wall"
+                k,
+                f"a person of radius {radius:g} m cannot walk the leg from ({a[0]:g}, {a[1]:g}) "
+                f"to ({b[0]:g}, {b[1]:g}): it crosses a wall or passes within "
+                f"{PLACEMENT_GAP:g} m of one, and there is no way around the walls",
             )
 
 
