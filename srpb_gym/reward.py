@@ -134,23 +134,34 @@ def step_bounds(control_dt: float, robot: Any) -> dict[str, float]:
     return {t: bounds[t] for t in SHAPING_TERMS}
 
 
+#: the discount factor the reward presets are sized for: that of every configuration in
+#: ``configs/train/ppo.yaml`` (``srpb-gym train`` checks the one it trains with)
+PRESET_GAMMA = 0.99
+
+
 def shaping_bound(
     weights: Mapping[str, float] | NDArray[np.float64], time_limit: float, control_dt: float,
-    robot: Any,
+    robot: Any, gamma: float = 1.0,
 ) -> float:  # fmt: skip
-    """The most the shaping terms (:data:`SHAPING_TERMS`) can cost over an episode of
-    ``time_limit`` seconds: every penalised term at its per-step bound (:func:`step_bounds`)
-    on every step. A positive weight (a bonus) never adds to the cost."""
+    """The most the shaping terms (:data:`SHAPING_TERMS`) can cost over the rest of an
+    episode of at most ``time_limit`` seconds, discounted by ``gamma`` per step: every
+    penalised term at its per-step bound (:func:`step_bounds`) on every step, summed with
+    weights ``gamma**k`` (``gamma`` = 1: the plain sum over the time limit). A positive
+    weight (a bonus) never adds to the cost. A learner that discounts with ``gamma`` never
+    prefers a collision to going on while this stays below the collision penalty."""
     if not isinstance(weights, Mapping):
         weights = dict(zip(TERMS, np.asarray(weights, dtype=np.float64).tolist()))
+    if not 0.0 < gamma <= 1.0:
+        raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
     steps = math.ceil(time_limit / control_dt - 1e-9)
+    horizon = steps if gamma == 1.0 else (1.0 - gamma**steps) / (1.0 - gamma)
     bounds = step_bounds(control_dt, robot)
-    return steps * sum(-min(weights.get(t, 0.0), 0.0) * bounds[t] for t in SHAPING_TERMS)
+    return horizon * sum(-min(weights.get(t, 0.0), 0.0) * bounds[t] for t in SHAPING_TERMS)
 
 
 class RewardGameableWarning(UserWarning):
-    """The reward weights let a collision pay: the shaping of one long episode can cost
-    more than the collision penalty, so a policy may learn to crash early."""
+    """The reward weights let a collision pay: the (discounted) shaping of the rest of an
+    episode can cost more than the collision penalty, so a policy may learn to crash."""
 
 
 class RewardFunction:
@@ -176,23 +187,27 @@ class RewardFunction:
         self._taubin_size = TAUBIN_MIN_MEMBERS[semantics == "reference"]
         self._checked: set[tuple[float, float]] = set()
 
-    def check_bound(self, time_limit: float, control_dt: float, robot: Any) -> None:
+    def check_bound(
+        self, time_limit: float, control_dt: float, robot: Any, gamma: float = PRESET_GAMMA
+    ) -> None:
         """Warn (:class:`RewardGameableWarning`, once per time limit and step) when the
-        shaping of an episode of ``time_limit`` seconds can cost as much as a collision."""
+        shaping of an episode of ``time_limit`` seconds, discounted by ``gamma``, can cost
+        as much as a collision."""
         key = (float(time_limit), float(control_dt))
         if key in self._checked:
             return
         self._checked.add(key)
         penalty = -float(self.weights[_T["collision"]])
-        bound = shaping_bound(self.weights, time_limit, control_dt, robot)
+        bound = shaping_bound(self.weights, time_limit, control_dt, robot, gamma)
         if bound > 0.0 and bound >= penalty:
             what = (f"the collision penalty {penalty:.3g}" if penalty > 0.0 else
                     f"a collision, which is not penalised (weight {-penalty:g})")  # fmt: skip
             warnings.warn(
-                f"reward: the shaping terms can cost up to {bound:.3g} over the {time_limit:g} s "
-                f"time limit (control_dt {control_dt:g} s), more than {what}: a policy may "
-                "learn to end episodes by crashing. Raise 'collision' or lower the shaping "
-                "weights (see srpb_gym.reward.shaping_bound)",
+                f"reward: the shaping terms can cost up to {bound:.3g} (discounted by "
+                f"{gamma:g} per step) within the {time_limit:g} s time limit (control_dt "
+                f"{control_dt:g} s), more than {what}: a policy may learn to end episodes by "
+                "crashing. Raise 'collision' or lower the shaping weights (see "
+                "srpb_gym.reward.shaping_bound)",
                 RewardGameableWarning, stacklevel=3,
             )  # fmt: skip
 

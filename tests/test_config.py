@@ -167,7 +167,7 @@ def test_check_weights_refusals(weights, expected):
 def test_check_weights_and_presets():
     assert check_weights({"time": np.float32(-0.5), "obs": 2}) == {"time": -0.5, "obs": 2.0}
     assert load_preset("task") == {"progress": 1.0, "success": 10.0, "collision": -25.0,
-                                   "time": -0.05}  # fmt: skip
+                                   "time": -0.1}  # fmt: skip
     with pytest.raises(InputError, match=r"^reward: unknown reward preset 'fast'"):
         load_preset("fast")
 

@@ -1,5 +1,6 @@
-"""The reward presets cannot be gamed by crashing: the shaping of the longest possible
-episode costs less than a collision, and the per-step bound behind that claim holds."""
+"""The reward presets cannot be gamed by crashing: the worst (discounted) shaping of the
+rest of any episode costs less than a collision, and the per-step bound behind that claim
+holds."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import pytest
 import srpb_gym  # noqa: F401  (registers the ids)
 from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.reward import (
+    PRESET_GAMMA,
     SHAPING_TERMS,
     RewardGameableWarning,
     load_preset,
@@ -21,15 +23,28 @@ from srpb_gym.reward import (
 )
 from srpb_gym.scenarios import load_scenario
 from srpb_gym.sim.robot import RobotConfig
+from srpb_gym.training.config import load_entries, resolve
 
 
 @pytest.mark.parametrize("preset", ["srpb", "task"])
 @pytest.mark.parametrize("scenario", sorted(SCENARIO_IDS.values()))
 def test_worst_case_shaping_costs_less_than_a_collision(preset: str, scenario: str) -> None:
+    """The invariant: for a learner discounting as every training configuration does, the
+    worst shaping of the rest of any episode costs less than a collision."""
     weights = load_preset(preset)
     limit = load_scenario(scenario).time_limit
-    bound = shaping_bound(weights, limit, 0.1, RobotConfig())
+    gammas = {resolve(env_id).gamma for env_id in load_entries()[0] if env_id != "default"}
+    assert gammas == {PRESET_GAMMA}
+    bound = shaping_bound(weights, limit, 0.1, RobotConfig(), PRESET_GAMMA)
     assert 0.0 < bound < -weights["collision"]
+
+
+def test_discounted_bound_by_hand() -> None:
+    # 3 steps of 0.1 s at psi -2: 0.2 per step, discounted 1 + 0.5 + 0.25
+    assert shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig(), 0.5) == pytest.approx(0.35)
+    assert shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig()) == pytest.approx(0.6)
+    with pytest.raises(ValueError, match="gamma"):
+        shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig(), 0.0)
 
 
 def test_every_packaged_preset_is_checked() -> None:
@@ -56,6 +71,7 @@ def test_per_step_values_stay_within_their_bounds(env_id: str) -> None:
     on a step without a contact."""
     env = gym.make(env_id)
     bounds = step_bounds(0.1, RobotConfig())
+    time_weight = load_preset("srpb")["time"]  # time has no srpb_step/ entry
     rng = np.random.default_rng(3)
     seen = dict.fromkeys(SHAPING_TERMS, 0.0)
     for episode in range(3):
@@ -67,7 +83,7 @@ def test_per_step_values_stay_within_their_bounds(env_id: str) -> None:
                 break
             for term in SHAPING_TERMS:
                 key = f"srpb_step/{term}" if f"srpb_step/{term}" in info else None
-                value = info[key] if key else info[f"reward_{term}"] / -0.05
+                value = info[key] if key else info[f"reward_{term}"] / time_weight
                 assert value <= bounds[term] * (1 + 1e-9) + 1e-12, (term, value)
                 seen[term] = max(seen[term], value)
             if terminated or truncated:

@@ -40,7 +40,7 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.registration import SCENARIO_IDS
-from srpb_gym.reward import preset_names
+from srpb_gym.reward import PRESET_GAMMA, TERMS, preset_names, shaping_bound
 from srpb_gym.training.callbacks import (
     EpisodeStatsCallback,
     Outcomes,
@@ -99,8 +99,10 @@ def make_vec_env(env_id: str, config: TrainConfig, env_kwargs: Mapping[str, Any]
     return venv
 
 
-def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any]) -> None:
-    """Refuse an unknown id or preset, and env kwargs the environment refuses, now."""
+def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
+                   gamma: float = PRESET_GAMMA) -> None:  # fmt: skip
+    """Refuse an unknown id or preset, env kwargs the environment refuses and a reward that
+    the discount ``gamma`` makes gameable (a collision worth more than going on), now."""
     if env_id not in gym.registry or not env_id.startswith("SRPB-"):
         ids = sorted(k for k in gym.registry if k.startswith("SRPB-"))
         raise InputError(f"unknown environment {env_id!r}; choose one of: {', '.join(ids)}",
@@ -108,7 +110,25 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any]) -> N
     if preset not in preset_names():
         raise InputError(f"choose one of: {', '.join(preset_names())}", key="--reward")
     env = gym.make(env_id, reward=preset, **env_kwargs)
-    env.close()
+    try:
+        base = env.unwrapped
+        if base.task.collision_mode != "terminate":
+            return
+        names = getattr(base, "scenarios", None)
+        limits = ([base.scenario_of(n).time_limit for n in names] if names is not None
+                  else [base.scenario.time_limit])  # fmt: skip
+        weights = base.task.reward_fn.weights
+        penalty = -float(weights[TERMS.index("collision")])
+        bound = max(shaping_bound(weights, limit, base.sim.config.control_dt,
+                                  base.sim.robot_config, gamma) for limit in limits)  # fmt: skip
+        if bound >= penalty:
+            raise InputError(
+                f"with gamma {gamma:g} the shaping of the {preset!r} reward can cost up to "
+                f"{bound:.3g} (discounted) from any state, not less than the collision "
+                f"penalty {penalty:g}: a policy could learn to crash. Lower gamma or the "
+                "shaping weights, or raise 'collision'", key="--hyperparams: gamma")  # fmt: skip
+    finally:
+        env.close()
 
 
 def train(
@@ -136,7 +156,7 @@ def train(
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
-    check_env_args(env_id, preset, env_kwargs)
+    check_env_args(env_id, preset, env_kwargs, config.gamma)
     kwargs = {"reward": preset, **env_kwargs}
     if config.torch_threads > 0:
         import torch
