@@ -89,9 +89,10 @@ class SRPBNavEnv(gym.Env):
     (default) or ``"task"`` picks a preset; ``reward_weights`` overrides weights by name.
     ``info["reward_<term>"]`` holds each weighted term (they sum to the reward) and
     ``info["srpb_step/<term>"]`` the unweighted SRPB terms. The presets cannot be gamed by
-    crashing: every shaping term at its worst on every step of the time limit costs less
-    than the collision penalty (:func:`srpb_gym.reward.shaping_bound`); weights or settings
-    that break this bound get a :class:`~srpb_gym.reward.RewardGameableWarning` at reset.
+    crashing: for a learner discounting by 0.99 per step, every shaping term at its worst
+    on every remaining step costs less than the collision penalty
+    (:func:`srpb_gym.reward.shaping_bound`); weights or settings that break this bound get
+    a :class:`~srpb_gym.reward.RewardGameableWarning` at reset.
 
     ## Starting State
     Start and goal poses, people, their routes and parameters are sampled from the
