@@ -128,8 +128,13 @@ class SRPBNavEnv(gym.Env):
     ``record_dir``: write every episode there as SRPB native logs and an ``.npz`` record
     (created and checked when the environment is made). ``sim``, ``robot``, ``sensors``
     (``lidar``, ``detector``, ``tracker``), ``crowd``: overrides of the simulation
-    settings. Every argument is plain data; ``reset(options=...)`` takes ``people``
-    (False: an empty variant), ``start`` and ``goal`` (x, y, yaw).
+    settings. ``crowd`` takes the fields of :class:`~srpb_gym.sim.crowd.SocialForceConfig`;
+    ``crowd={"robot_reaction": 0.0}`` makes the robot invisible to people (CrowdNav's
+    "invisible robot"): it multiplies every person's own robot reaction (the scenario's
+    per-walker ``robot_reaction``, F-formation members' ``formation_robot_reaction``);
+    people still collide with the robot physically. Every argument is plain data;
+    ``reset(options=...)`` takes ``people`` (False: an empty variant), ``start`` and
+    ``goal`` (x, y, yaw).
 
     The planner's computation time (m_cef, m_cre) is the wall time between the previous
     ``reset``/``step`` returning and this ``step`` starting, unless a harness calls
