@@ -14,7 +14,9 @@ hyperparameters and the test results).
 from __future__ import annotations
 
 import argparse
+import csv
 import json
+import math
 import shutil
 import sys
 from pathlib import Path
@@ -73,6 +75,29 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
+def best_step(run: Path) -> int | None:
+    """The step of the best periodic evaluation, by the rule that chose ``best/`` (highest
+    mean success over the evaluated environments, then lowest mean median m_psi)."""
+    path = run / "evaluations.csv"
+    if not path.is_file():
+        return None
+    rows: dict[int, list[dict[str, str]]] = {}
+    with open(path, newline="", encoding="utf-8") as f:
+        for row in csv.DictReader(f):
+            rows.setdefault(int(row["step"]), []).append(row)
+
+    def score(step: int) -> tuple[float, float]:
+        success = sum(float(r["success"]) for r in rows[step]) / len(rows[step])
+        psi = [float(r["m_psi"]) for r in rows[step] if r["m_psi"] != ""]
+        return success, -sum(psi) / len(psi) if psi else -math.inf
+
+    best: int | None = None
+    for step in sorted(rows):  # the first of equal scores, as during training
+        if best is None or score(step) > score(best):
+            best = step
+    return best
+
+
 def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[str, Any]:
     checkpoint = run if final or not (run / "best" / "model.zip").is_file() else run / "best"
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
@@ -90,7 +115,8 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[st
     card = {
         "name": name, "algo": "PPO", "env": config["env"], "reward": config["reward"],
         "env_kwargs": config.get("env_kwargs", {}), "seed": config["seed"],
-        "checkpoint": "best periodic evaluation" if checkpoint != run else "final",
+        "checkpoint": (f"best periodic evaluation (step {best_step(run)})"
+                       if checkpoint != run else "final"),
         "hyperparams": config["hyperparams"],
         "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
                      "machine": info["machine"], "versions": info["versions"],
