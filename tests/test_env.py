@@ -182,7 +182,9 @@ def go_to_goal(env: gym.Env) -> np.ndarray:
     return np.array([speed, np.clip(2.0 * err, -1, 1)], dtype=np.float32)
 
 
-@pytest.mark.parametrize("env_id", ["SRPB-Corridor-v0", "SRPB-FFormation-v0", "SRPB-Crowd-v0"])
+# scenarios whose goal is in straight sight of the start (fformation's route bends round
+# cabinets, doorway's through a door)
+@pytest.mark.parametrize("env_id", ["SRPB-Corridor-v0", "SRPB-Crossing-v0", "SRPB-Crowd-v0"])
 def test_go_to_goal_reaches_the_goal_of_an_empty_scenario(env_id):
     env = make(env_id)
     for seed in range(3):

@@ -26,7 +26,8 @@ from srpb_gym.scenarios.sampler import GAP, ROBOT_GAP, ROBOTS_GAP
 from srpb_gym.scenarios.space import point_distance
 
 HERE = Path(__file__).resolve().parent
-# layouts drawn with one robot before the ``robots`` key existed ("name|radius|seed")
+# layouts drawn with one robot before the ``robots`` key existed ("name|radius|seed"; crowd
+# and fformation re-drawn when their F-formations were moved onto the robot's way)
 RECORDED = json.loads((HERE / "single_robot_layouts.json").read_text())
 ROBOT_COUNTS = {"corridor": 3, "crossing": 4, "crowd": 8, "doorway": 4, "fformation": 3}
 CASES = [(name, n) for name in sorted(ROBOT_COUNTS) for n in (1, 2, 3, 8)
@@ -35,7 +36,7 @@ SEEDS = 40
 BIG = 0.45  # m, a robot radius every packaged scenario holds with all its robots
 # m, a radius each scenario holds with all its robots, and one it does not
 LARGEST = {"corridor": (0.95, 1.0), "crossing": (0.8, 0.85), "crowd": (0.75, 0.8),
-           "doorway": (0.45, 0.5), "fformation": (0.7, 0.75)}  # fmt: skip
+           "doorway": (0.45, 0.5), "fformation": (0.75, 0.8)}  # fmt: skip
 
 
 def _plain(layout) -> dict:

@@ -107,7 +107,9 @@ def test_bad_radius_is_an_input_error(radius):
 
 
 # (name, seed): robot start, robot goal, first person's position, first formation's centre
-# and the number of walking people, as sampled before the robot radius became a parameter.
+# and the number of walking people, as sampled before the robot radius became a parameter
+# (crowd and fformation: as sampled since their F-formations were moved onto the robot's
+# way).
 # Yaws are compared to 1e-15 rad: the yaw drawn from a range was wrapped by adding and
 # subtracting pi before, which changed the last bit; it is now returned as drawn.
 DEFAULT_LAYOUTS = {
@@ -124,7 +126,7 @@ DEFAULT_LAYOUTS = {
     ("crowd", 0): (
         (1.2095693498571634, 0.9158293710110962, 0.6837546613075758),
         (10.532778819148955, 8.513222108422823, 0.6837546613075758),
-        (6.447781178690191, 3.2374646367289865), (4.126540478400544, 7.781888943194304), 13,
+        (9.922332361378775, 5.364858738192007), (4.673981071760082, 3.993826673183316), 12,
     ),
     ("doorway", 1): (
         (1.5118216247002567, 4.90092739265187, -0.0004203378237413462),
@@ -132,9 +134,9 @@ DEFAULT_LAYOUTS = {
         (10.810810375281767, 3.4551948182149674), None, 2,
     ),
     ("fformation", 2): (
-        (0.9046448536997266, 2.4193964573656492, -0.00010194239243556071),
-        (10.844267722178284, 2.4183831884270193, 0.0),
-        None, (8.640040210386262, 2.545712105362359), 0,
+        (4.404644853699726, 6.419396457365649, -1.5358546515733218),
+        (10.094267722178284, 1.7683831884270194, 0.0),
+        None, (7.945712105362359, 1.7875802146733206), 0,
     ),
 }  # fmt: skip
 

@@ -162,7 +162,8 @@ def test_paper_scenarios_match_the_description():
     fform = sample(load_scenario("fformation"), np.random.default_rng(0))
     (group,) = fform.formations
     assert len(group.members) == 2
-    assert 9.0 <= math.dist(fform.robots[0].start[:2], fform.robots[0].goal[:2]) <= 11.0
+    # the route bends round the cabinets (about 10 m driven, as in the paper's lab)
+    assert 6.5 <= math.dist(fform.robots[0].start[:2], fform.robots[0].goal[:2]) <= 8.0
     assert math.dist(group.center, fform.robots[0].goal[:2]) < 3.0
 
 
