@@ -19,7 +19,7 @@ from pathlib import Path
 from srpb_gym.evaluation.figures import pyplot
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
-PANELS = (("success", "success rate", 100.0), ("collision", "collision rate", 100.0),
+PANELS = (("success", "success rate [%]", 100.0), ("collision", "collision rate [%]", 100.0),
           ("m_psi", "median m_psi [%]", 1.0))  # fmt: skip
 
 
@@ -45,6 +45,8 @@ def plot(scenario: str, curves: dict[str, dict[str, list[float]]], out: Path) ->
         for preset, curve in sorted(curves.items()):
             ax.plot(curve["step"], curve[key], marker="o", markersize=3, label=preset)
         ax.set_xlabel("training steps")
+        if key in ("success", "collision"):
+            ax.set_ylim(-3, 103)
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend(title="reward preset")
