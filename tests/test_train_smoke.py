@@ -118,8 +118,10 @@ def test_wall_clock_limit_stops_as_finished(tmp_path):
         ),
         (["--env", "SRPB-Crowd-v0", "--env-kwargs", "robot={radius: -1}"], "robot"),
         (["--env", "SRPB-Crowd-v0", "--seed", "-1"], "--seed: must be at least 0"),
-        (["--env", "SRPB-Crowd-v0", "--hyperparams", "gamma=0.999"],
-         "--hyperparams: gamma: with gamma 0.999 the shaping of the 'srpb' reward can cost"),
+        (
+            ["--env", "SRPB-Crowd-v0", "--hyperparams", "gamma=0.999"],
+            "--hyperparams: gamma: with gamma 0.999 the shaping of the 'srpb' reward can cost",
+        ),
         (["--env", "SRPB-Mix-v0", "--hyperparams", "gamma=0.999"], "could learn to crash"),
         (["--env", "SRPB-Crowd-v0", "--max-minutes", "0"], "--max-minutes: must be > 0"),
     ],
