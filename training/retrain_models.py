@@ -30,15 +30,20 @@ MODELS: dict[str, tuple[str, str]] = {
     "ppo-crowd-srpb": ("SRPB-Crowd-v0", "srpb"),
     "ppo-mix-srpb": ("SRPB-Mix-v0", "srpb"),
 }
+#: name -> seed and hyperparameter overrides of the run that made the shipped model, where
+#: they differ from seed 0 and configs/train/ppo.yaml (the model card has the command)
+RUN_SETTINGS: dict[str, tuple[int, tuple[str, ...]]] = {}
 
 
 def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
     env_id, preset = MODELS[name]
+    seed, overrides = RUN_SETTINGS.get(name, (0, ()))
     run = f"runs/train/{name}"
-    train = ["srpb-gym", "train", "--env", env_id, "--reward", preset, "--seed", "0",
+    train = ["srpb-gym", "train", "--env", env_id, "--reward", preset, "--seed", str(seed),
              "--max-minutes", f"{max_minutes:g}", "--out", run, "--no-progress"]  # fmt: skip
-    if threads:
-        train += ["--hyperparams", f"torch_threads={threads}"]
+    hyperparams = [*overrides, *([f"torch_threads={threads}"] if threads else [])]
+    if hyperparams:
+        train += ["--hyperparams", *hyperparams]
     return [train, [sys.executable, "-m", "training.ship", run, "--name", name]]
 
 
