@@ -56,6 +56,7 @@ def test_ppo_kwargs_build_the_networks():
         ("SRPB-Crowd-v0:\n  n_envs: two\n", "ppo.yaml:2: SRPB-Crowd-v0.n_envs: expected an"),
         ("SRPB-Crowd-v0: 3\n", "ppo.yaml:1: SRPB-Crowd-v0: expected a mapping"),
         ("- 1\n", "ppo.yaml: expected a mapping of environment ids"),
+        ("SRPB-Crowd-v0:\n  n_steps: 64\ndefault: 3\n", "ppo.yaml:3: default: expected a mapping"),
         ("default:\n  vec_env: threads\n", "vec_env: choose one of subproc, dummy"),
         ("default:\n  n_steps: [1\n", "ppo.yaml:3: invalid YAML"),
     ],

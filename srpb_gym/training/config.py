@@ -145,7 +145,8 @@ def load_entries(source: Any = None) -> tuple[dict[str, dict[str, Any]], dict[st
         if not isinstance(entry, Mapping):
             raise InputError(f"{key}: expected a mapping of hyperparameters, got {entry!r}",
                              name, lines.get(str(key)))  # fmt: skip
-        _build({**data.get(DEFAULT_KEY, {}), **entry}, str(key), name, lines)  # all valid
+    for key, entry in data.items():  # every entry valid, merged with the default
+        _build({**data.get(DEFAULT_KEY, {}), **entry}, str(key), name, lines)
     return {str(k): dict(v) for k, v in data.items()}, lines, name
 
 
