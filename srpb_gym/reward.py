@@ -143,18 +143,18 @@ def shaping_bound(
     weights: Mapping[str, float] | NDArray[np.float64], time_limit: float, control_dt: float,
     robot: Any, gamma: float = 1.0,
 ) -> float:  # fmt: skip
-    """The most the shaping terms (:data:`SHAPING_TERMS`) can cost over the rest of an
-    episode of at most ``time_limit`` seconds, discounted by ``gamma`` per step: every
+    """The most the shaping terms (:data:`SHAPING_TERMS`) can cost from any state: every
     penalised term at its per-step bound (:func:`step_bounds`) on every step, summed with
-    weights ``gamma**k`` (``gamma`` = 1: the plain sum over the time limit). A positive
-    weight (a bonus) never adds to the cost. A learner that discounts with ``gamma`` never
-    prefers a collision to going on while this stays below the collision penalty."""
+    weights ``gamma**k`` over all steps to come (a learner bootstraps its value past a
+    truncation, so its horizon does not end at the time limit); ``gamma`` = 1: the plain
+    sum over the ``time_limit``. A positive weight (a bonus) never adds to the cost. A
+    learner that discounts with ``gamma`` never prefers a collision to going on while this
+    stays below the collision penalty."""
     if not isinstance(weights, Mapping):
         weights = dict(zip(TERMS, np.asarray(weights, dtype=np.float64).tolist()))
     if not 0.0 < gamma <= 1.0:
         raise ValueError(f"gamma must be in (0, 1], got {gamma!r}")
-    steps = math.ceil(time_limit / control_dt - 1e-9)
-    horizon = steps if gamma == 1.0 else (1.0 - gamma**steps) / (1.0 - gamma)
+    horizon = math.ceil(time_limit / control_dt - 1e-9) if gamma == 1.0 else 1.0 / (1.0 - gamma)
     bounds = step_bounds(control_dt, robot)
     return horizon * sum(-min(weights.get(t, 0.0), 0.0) * bounds[t] for t in SHAPING_TERMS)
 

@@ -40,8 +40,8 @@ def test_worst_case_shaping_costs_less_than_a_collision(preset: str, scenario: s
 
 
 def test_discounted_bound_by_hand() -> None:
-    # 3 steps of 0.1 s at psi -2: 0.2 per step, discounted 1 + 0.5 + 0.25
-    assert shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig(), 0.5) == pytest.approx(0.35)
+    # psi -2: at most 0.2 per step; discounted by 0.5 over all steps to come: 0.2 / (1 - 0.5)
+    assert shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig(), 0.5) == pytest.approx(0.4)
     assert shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig()) == pytest.approx(0.6)
     with pytest.raises(ValueError, match="gamma"):
         shaping_bound({"psi": -2.0}, 0.3, 0.1, RobotConfig(), 0.0)

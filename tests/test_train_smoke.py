@@ -123,6 +123,14 @@ def test_wall_clock_limit_stops_as_finished(tmp_path):
             "--hyperparams: gamma: with gamma 0.999 the shaping of the 'srpb' reward can cost",
         ),
         (["--env", "SRPB-Mix-v0", "--hyperparams", "gamma=0.999"], "could learn to crash"),
+        (
+            ["--env", "SRPB-Crowd-v0", "--env-kwargs", "crowd={robot_reaction: 0.0}"],
+            "--env-kwargs: periodic evaluation runs the environment as registered, not with crowd",
+        ),
+        (
+            ["--env", "SRPB-Crowd-v0", "--hyperparams", "eval_freq=0", "--env-kwargs", "colour=1"],
+            "--env-kwargs: ",
+        ),
         (["--env", "SRPB-Crowd-v0", "--max-minutes", "0"], "--max-minutes: must be > 0"),
     ],
 )

@@ -50,7 +50,7 @@ def plot(scenario: str, curves: dict[str, dict[str, list[float]]], out: Path) ->
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     axes[0].legend(title="reward preset")
-    fig.suptitle(f"PPO on {scenario}: periodic evaluations (20 episodes, unseen seeds)")
+    fig.suptitle(f"PPO on {scenario}: periodic evaluations on seeds never trained on")
     path = out / f"learning_{scenario}.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)

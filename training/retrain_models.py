@@ -1,12 +1,12 @@
 """Retrain and re-package every shipped model (or those named), one after the other.
 
-    python -m training.retrain_models                 # all of them, about 1 h each at most
-    python -m training.retrain_models ppo-crowd-srpb  # one
+    python -m training.retrain_models                 # the shipped ones, at most 1 h each
+    python -m training.retrain_models ppo-crowd-srpb  # one (also one not shipped yet)
     python -m training.retrain_models --dry-run       # print the commands only
 
 Each model: ``srpb-gym train`` with its env id, reward preset, seed 0 and the steps of
 configs/train/ppo.yaml, stopped after at most ``--max-minutes`` (60) of wall time, into
-``runs/train/<name>``; then ``python -m training.ship`` tests its best checkpoint on 100
+``runs/train/<name>-<time>``; then ``python -m training.ship`` tests its best checkpoint on 100
 unseen seeds (from 10000) and writes ``srpb_gym/models/<name>/`` with its model card.
 On a 2-core machine two runs side by side (``--jobs 2``, one torch thread each) finish
 sooner than one after the other.
@@ -18,7 +18,10 @@ import argparse
 import shlex
 import subprocess
 import sys
+import time
 from concurrent.futures import ThreadPoolExecutor
+
+from srpb_gym.models import model_names
 
 #: name -> (environment id, reward preset)
 MODELS: dict[str, tuple[str, str]] = {
@@ -38,7 +41,7 @@ RUN_SETTINGS: dict[str, tuple[int, tuple[str, ...]]] = {}
 def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
     env_id, preset = MODELS[name]
     seed, overrides = RUN_SETTINGS.get(name, (0, ()))
-    run = f"runs/train/{name}"
+    run = f"runs/train/{name}-{time.strftime('%Y%m%d-%H%M%S')}"
     train = ["srpb-gym", "train", "--env", env_id, "--reward", preset, "--seed", str(seed),
              "--max-minutes", f"{max_minutes:g}", "--out", run, "--no-progress"]  # fmt: skip
     hyperparams = [*overrides, *([f"torch_threads={threads}"] if threads else [])]
@@ -57,7 +60,7 @@ def main() -> int:
     unknown = [n for n in args.names if n not in MODELS]
     if unknown:
         parser.error(f"unknown model {unknown[0]!r}; choose from {', '.join(MODELS)}")
-    names = args.names or list(MODELS)
+    names = args.names or [n for n in MODELS if n in model_names()]
     threads = 1 if args.jobs > 1 else 0
 
     def one(name: str) -> int:

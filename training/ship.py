@@ -70,8 +70,9 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
                      f"{100 * f['timeout']:.0f}% | {f['m_psi']:.3g} | {f['m_fsi']:.3g} | "
                      f"{f['m_dir']:.3g} | {f['m_mef']:.3g} |")  # fmt: skip
     lines += ["", "Medians of the SRPB metrics (%, s), `paper` semantics, from the tracked "
-              "people. Training curves: `evaluations.csv` (periodic evaluations, 20 "
-              "episodes each on seeds from 1000000)."]  # fmt: skip
+              "people. Training curves: `evaluations.csv` (periodic evaluations, "
+              f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
+              "1000000)."]  # fmt: skip
     return "\n".join(lines) + "\n"
 
 
@@ -107,9 +108,11 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[st
     shutil.rmtree(work, ignore_errors=True)
     results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work)
     target = MODELS_DIR / name
-    target.mkdir(parents=True, exist_ok=True)
-    for file in ("model.zip", "vecnormalize.pkl"):
-        shutil.copyfile(checkpoint / file, target / file)
+    shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
+    target.mkdir(parents=True)
+    for file in ("model.zip", "vecnormalize.pkl"):  # no statistics without normalize
+        if (checkpoint / file).is_file():
+            shutil.copyfile(checkpoint / file, target / file)
     if (run / "evaluations.csv").is_file():
         shutil.copyfile(run / "evaluations.csv", target / "evaluations.csv")
     card = {

@@ -68,7 +68,7 @@ def _shipped(given: str) -> Path | None:
     """The ``model.zip`` of the shipped model named ``given`` (when no such file exists)."""
     from srpb_gym.models import model_path
 
-    return None if os.path.exists(given) else model_path(given)
+    return None if os.path.isfile(given) else model_path(given)
 
 
 def _policy_spec(

@@ -70,6 +70,7 @@ class EpisodeStatsCallback(BaseCallback):
 
     def _on_training_start(self) -> None:
         self._sums = np.zeros((self.training_env.num_envs, len(TERMS)))
+        self._collided = np.zeros(self.training_env.num_envs, dtype=bool)
 
     def _on_step(self) -> bool:
         infos: Sequence[dict[str, Any]] = self.locals["infos"]
@@ -80,6 +81,7 @@ class EpisodeStatsCallback(BaseCallback):
             row = sums[i]
             for k, key in enumerate(self._keys):
                 row[k] += info[key]
+            self._collided[i] |= bool(info["collision"])  # any step (collision="continue")
             if not dones[i]:
                 continue
             for k, term in enumerate(TERMS):
@@ -89,11 +91,12 @@ class EpisodeStatsCallback(BaseCallback):
                 value = info.get(key)
                 if value is not None and math.isfinite(value):
                     self.logger.record_mean(key, float(value))
-            success, collision = bool(info["is_success"]), bool(info["collision"])
-            timeout = bool(info.get("TimeLimit.truncated", False)) or not (success or collision)
+            success, collision = bool(info["is_success"]), bool(self._collided[i])
+            self._collided[i] = False
+            truncated = bool(info.get("TimeLimit.truncated", False))
             self.logger.record_mean("episode/success", float(success))
             self.logger.record_mean("episode/collision", float(collision))
-            self.logger.record_mean("episode/timeout", float(timeout and not collision))
+            self.logger.record_mean("episode/timeout", float(truncated and not success))
             self.outcomes.add(success, collision)
         return True
 

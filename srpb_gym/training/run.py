@@ -52,6 +52,8 @@ from srpb_gym.training.callbacks import (
 from srpb_gym.training.config import TrainConfig
 
 MIX_ID = "SRPB-Mix-v0"
+#: env kwargs that change only the reward, which evaluation does not use
+REWARD_ONLY_KWARGS = frozenset({"reward_weights"})
 
 
 @dataclass
@@ -109,7 +111,12 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
                          key="--env")  # fmt: skip
     if preset not in preset_names():
         raise InputError(f"choose one of: {', '.join(preset_names())}", key="--reward")
-    env = gym.make(env_id, reward=preset, **env_kwargs)
+    try:
+        env = gym.make(env_id, reward=preset, **env_kwargs)
+    except (TypeError, ValueError) as exc:
+        if isinstance(exc, InputError):
+            raise
+        raise InputError(str(exc), key="--env-kwargs") from None
     try:
         base = env.unwrapped
         if base.task.collision_mode != "terminate":
@@ -121,7 +128,7 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
         penalty = -float(weights[TERMS.index("collision")])
         bound = max(shaping_bound(weights, limit, base.sim.config.control_dt,
                                   base.sim.robot_config, gamma) for limit in limits)  # fmt: skip
-        if bound >= penalty:
+        if bound > 0.0 and bound >= penalty:
             raise InputError(
                 f"with gamma {gamma:g} the shaping of the {preset!r} reward can cost up to "
                 f"{bound:.3g} (discounted) from any state, not less than the collision "
@@ -156,6 +163,11 @@ def train(
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
+    changing = sorted(set(env_kwargs) - REWARD_ONLY_KWARGS)
+    if changing and config.eval_freq > 0:
+        raise InputError(f"periodic evaluation runs the environment as registered, not with "
+                         f"{', '.join(changing)}: set eval_freq=0 (--hyperparams) or leave "
+                         "them out", key="--env-kwargs")  # fmt: skip
     check_env_args(env_id, preset, env_kwargs, config.gamma)
     kwargs = {"reward": preset, **env_kwargs}
     if config.torch_threads > 0:
@@ -167,42 +179,42 @@ def train(
     _write_run_files(out, env_id, preset, kwargs, seed, config, argv)
 
     venv = make_vec_env(env_id, config, kwargs, seed)
-    if config.normalize:
-        venv = VecNormalize(venv, gamma=config.gamma)
-    model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
-                **config.ppo_kwargs())  # fmt: skip
-    model.set_logger(
-        Logger(
-            out,
-            [
-                make_output_format("csv", out),
-                make_output_format("tensorboard", os.path.join(out, "tb")),
-            ],
-        )
-    )
-    outcomes = Outcomes()
-    callbacks: list[Any] = [EpisodeStatsCallback(outcomes)]
-    if progress:
-        callbacks.append(ProgressCallback(config.n_timesteps, outcomes))
-    if config.eval_freq > 0:
-        callbacks.append(PeriodicEvalCallback(out, eval_env_ids(env_id), config.eval_freq,
-                                              config.eval_episodes, log))  # fmt: skip
-    limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)
-    if limit is not None:
-        callbacks.append(limit)
-    started = time.perf_counter()
-    interrupted = False
+    bar: ProgressCallback | None = None
     try:
-        model.learn(config.n_timesteps, callback=CallbackList(callbacks), log_interval=1,
-                    tb_log_name="tb", progress_bar=False)  # fmt: skip
-    except KeyboardInterrupt:
-        interrupted = True
-        log(f"interrupted at step {model.num_timesteps}: saving the model")
+        if config.normalize:
+            venv = VecNormalize(venv, gamma=config.gamma)
+        model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
+                    **config.ppo_kwargs())  # fmt: skip
+        tensorboard = make_output_format("tensorboard", os.path.join(out, "tb"))
+        model.set_logger(Logger(out, [make_output_format("csv", out), tensorboard]))
+        outcomes = Outcomes()
+        callbacks: list[Any] = [EpisodeStatsCallback(outcomes)]
+        if progress:
+            bar = ProgressCallback(config.n_timesteps, outcomes)
+            callbacks.append(bar)
+        if config.eval_freq > 0:
+            callbacks.append(PeriodicEvalCallback(out, eval_env_ids(env_id), config.eval_freq,
+                                                  config.eval_episodes, log))  # fmt: skip
+        limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)
+        if limit is not None:
+            callbacks.append(limit)
+        started = time.perf_counter()
+        interrupted = False
+        try:
+            model.learn(config.n_timesteps, callback=CallbackList(callbacks), log_interval=1,
+                        tb_log_name="tb", progress_bar=False)  # fmt: skip
+        except KeyboardInterrupt:
+            interrupted = True
+            log(f"interrupted at step {model.num_timesteps}: saving the model")
+        finally:
+            wall = time.perf_counter() - started
+            save_checkpoint(model, out)
+            _finish_run_json(out, model.num_timesteps, wall, interrupted,
+                             limit is not None and limit.reached)  # fmt: skip
+            model.logger.close()
     finally:
-        wall = time.perf_counter() - started
-        save_checkpoint(model, out)
-        _finish_run_json(out, model.num_timesteps, wall, interrupted,
-                         limit is not None and limit.reached)  # fmt: skip
+        if bar is not None and bar.bar is not None:
+            bar.bar.close()
         venv.close()
     return TrainResult(out, int(model.num_timesteps), wall, interrupted)
 
