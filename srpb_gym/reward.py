@@ -191,8 +191,8 @@ class RewardFunction:
         self, time_limit: float, control_dt: float, robot: Any, gamma: float = PRESET_GAMMA
     ) -> None:
         """Warn (:class:`RewardGameableWarning`, once per time limit and step) when the
-        shaping of an episode of ``time_limit`` seconds, discounted by ``gamma``, can cost
-        as much as a collision."""
+        shaping from any state, discounted by ``gamma`` (see :func:`shaping_bound`;
+        ``time_limit`` matters for ``gamma`` = 1 only), can cost as much as a collision."""
         key = (float(time_limit), float(control_dt))
         if key in self._checked:
             return
@@ -203,11 +203,10 @@ class RewardFunction:
             what = (f"the collision penalty {penalty:.3g}" if penalty > 0.0 else
                     f"a collision, which is not penalised (weight {-penalty:g})")  # fmt: skip
             warnings.warn(
-                f"reward: the shaping terms can cost up to {bound:.3g} (discounted by "
-                f"{gamma:g} per step) within the {time_limit:g} s time limit (control_dt "
-                f"{control_dt:g} s), more than {what}: a policy may learn to end episodes by "
-                "crashing. Raise 'collision' or lower the shaping weights (see "
-                "srpb_gym.reward.shaping_bound)",
+                f"reward: the shaping terms can cost up to {bound:.3g} from any state "
+                f"(discounted by {gamma:g} per {control_dt:g} s step), more than {what}: a "
+                "policy may learn to end episodes by crashing. Raise 'collision' or lower "
+                "the shaping weights (see srpb_gym.reward.shaping_bound)",
                 RewardGameableWarning, stacklevel=3,
             )  # fmt: skip
 
