@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import math
 import shutil
 import sys
 from pathlib import Path
@@ -26,7 +25,7 @@ import yaml
 
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
-from srpb_gym.training.callbacks import summarize_results
+from srpb_gym.training.callbacks import eval_score, summarize_results
 from srpb_gym.training.run import eval_env_ids
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
@@ -88,9 +87,8 @@ def best_step(run: Path) -> int | None:
             rows.setdefault(int(row["step"]), []).append(row)
 
     def score(step: int) -> tuple[float, float]:
-        success = sum(float(r["success"]) for r in rows[step]) / len(rows[step])
-        psi = [float(r["m_psi"]) for r in rows[step] if r["m_psi"] != ""]
-        return success, -sum(psi) / len(psi) if psi else -math.inf
+        return eval_score({"success": float(r["success"]),
+                           "m_psi": float(r["m_psi"] or "nan")} for r in rows[step])  # fmt: skip
 
     best: int | None = None
     for step in sorted(rows):  # the first of equal scores, as during training

@@ -21,7 +21,7 @@ import os
 import shutil
 import time
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -202,10 +202,9 @@ class PeriodicEvalCallback(BaseCallback):
                     self.logger.record(f"{prefix}/{key}", value)
             rows.append({"step": step, "env": env_id, **fig})
         self._append(rows)
-        success = float(np.mean([f["success"] for f in figures.values()]))
-        psi = float(np.nanmean([f["m_psi"] for f in figures.values()]) if figures else math.nan)
+        score = eval_score(figures.values())
+        success = score[0]
         self.logger.record("eval/mean_success", success)
-        score = (success, -psi if math.isfinite(psi) else -math.inf)
         if self.best is None or score > self.best:
             self.best = score
             best = os.path.join(self.run_dir, "best")
@@ -229,6 +228,15 @@ class PeriodicEvalCallback(BaseCallback):
         if self._latest is not None and self._latest != latest:
             shutil.rmtree(self._latest, ignore_errors=True)
         self._latest = latest
+
+
+def eval_score(figures: Iterable[Mapping[str, float]]) -> tuple[float, float]:
+    """How good one evaluation is, by environment figures (higher is better): the mean
+    success rate, then the negated mean of the median m_psi (-inf when none is defined)."""
+    figures = list(figures)
+    success = sum(f["success"] for f in figures) / len(figures)
+    psi = [f["m_psi"] for f in figures if math.isfinite(f["m_psi"])]
+    return success, -sum(psi) / len(psi) if psi else -math.inf
 
 
 def _cell(value: Any) -> Any:
