@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import math
 import pickle
 
 import gymnasium as gym
@@ -11,22 +10,13 @@ import numpy as np
 import pytest
 
 import srpb_gym  # noqa: F401  (registers the environments)
+from tests.helpers import same
 
 COPIES = {
     "deepcopy": copy.deepcopy,
     "pickle": lambda env: pickle.loads(pickle.dumps(env)),
     "copy of a copy": lambda env: copy.deepcopy(pickle.loads(pickle.dumps(env))),
 }
-
-
-def same(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
-    if isinstance(a, float) and math.isnan(a):
-        return isinstance(b, float) and math.isnan(b)
-    if isinstance(a, np.ndarray):
-        return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
-    return type(a) is type(b) and a == b
 
 
 @pytest.mark.parametrize("how", list(COPIES))

@@ -22,18 +22,9 @@ from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.mix import SRPBMixEnv
 from srpb_gym.registration import MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 from srpb_gym.resources import scenarios_dir
+from tests.helpers import same
 
 STOP = np.zeros(2, dtype=np.float32)
-
-
-def same(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
-    if isinstance(a, float) and math.isnan(a):
-        return isinstance(b, float) and math.isnan(b)
-    if isinstance(a, np.ndarray):
-        return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
-    return type(a) is type(b) and a == b
 
 
 def rollout(env: gym.Env, steps: int, action_seed: int = 0) -> list:
