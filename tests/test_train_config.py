@@ -80,6 +80,9 @@ def test_file_errors_name_file_line_and_key(tmp_path, text, expected):
         (["n_steps=[1"], "--hyperparams: n_steps:"),
         (["learning_rate=.nan"], "--hyperparams: learning_rate: must be finite"),
         (["policy=CnnPolicy"], "policy: only MlpPolicy fits the flat observation"),
+        (["pretrain_planner=astar"], "pretrain_planner: choose one of dwa, go-to-goal, social-dwa"),
+        (["pretrain_noise=2"], "pretrain_noise: must be in [0, 1], got 2"),
+        (["pretrain_episodes=0"], "pretrain_episodes: must be >= 1, got 0"),
     ],
 )
 def test_override_errors(items, expected):

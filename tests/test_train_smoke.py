@@ -139,3 +139,19 @@ def test_bad_arguments_exit_2(args, expected, tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("srpb-gym: error: ") and expected in err, err
     assert not (tmp_path / "run").exists()
+
+
+def test_warm_start_from_a_planner_is_recorded(tmp_path):
+    overrides = {"n_timesteps": 256, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
+                 "net_arch": [32, 32], "eval_freq": 0, "pretrain_planner": "go-to-goal",
+                 "pretrain_episodes": 1, "pretrain_epochs": 2}  # fmt: skip
+    config = resolve("SRPB-Corridor-v0", overrides)
+    lines: list[str] = []
+    result = train("SRPB-Corridor-v0", config, preset="task", out=str(tmp_path / "run"),
+                   progress=False, log=lines.append)  # fmt: skip
+    run = json.loads((tmp_path / "run" / "run.json").read_text())
+    warm = run["warm_start"]
+    assert warm["planner"] == "go-to-goal" and warm["demo_episodes"] == 1
+    assert warm["demo_steps"] > 10 and 0.0 <= warm["demo_success"] <= 1.0
+    assert any(line.startswith("warm start from go-to-goal") for line in lines)
+    assert result.steps == 256

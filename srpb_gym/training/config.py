@@ -48,6 +48,12 @@ class TrainConfig:
     are; ``eval_freq``: environment steps between evaluations through the ``srpb-gym
     eval`` harness (0: none), each over ``eval_episodes`` episodes; ``torch_threads``:
     threads of torch in the training process (0: torch's default, one per core).
+
+    ``pretrain_planner``: a classical planner (``dwa``, ``social-dwa``, ...) whose
+    ``pretrain_episodes`` demonstrations warm-start the policy before PPO (empty: none;
+    :mod:`srpb_gym.training.pretrain`): ``pretrain_epochs`` passes of behaviour cloning,
+    executed actions with Gaussian noise ``pretrain_noise``, then the policy's log
+    standard deviation set to ``pretrain_log_std``.
     """
 
     n_timesteps: int = 1_000_000
@@ -70,6 +76,11 @@ class TrainConfig:
     eval_freq: int = 50_000
     eval_episodes: int = 20
     torch_threads: int = 0
+    pretrain_planner: str = ""
+    pretrain_episodes: int = 100
+    pretrain_epochs: int = 30
+    pretrain_noise: float = 0.1
+    pretrain_log_std: float = -1.0
 
     def __post_init__(self) -> None:
         _at_least("n_timesteps", self.n_timesteps, 1)
@@ -80,6 +91,19 @@ class TrainConfig:
         _at_least("eval_freq", self.eval_freq, 0)
         _at_least("eval_episodes", self.eval_episodes, 1)
         _at_least("torch_threads", self.torch_threads, 0)
+        _at_least("pretrain_episodes", self.pretrain_episodes, 1)
+        _at_least("pretrain_epochs", self.pretrain_epochs, 1)
+        if self.pretrain_planner:
+            from srpb_gym.planners import PLANNERS
+
+            if self.pretrain_planner not in PLANNERS:
+                raise ValueError(f"pretrain_planner: choose one of {', '.join(sorted(PLANNERS))} "
+                                 f"or leave it empty, got {self.pretrain_planner!r}")  # fmt: skip
+        if not 0.0 <= self.pretrain_noise <= 1.0:
+            raise ValueError(f"pretrain_noise: must be in [0, 1], got {self.pretrain_noise!r}")
+        if not -5.0 <= self.pretrain_log_std <= 1.0:
+            raise ValueError(f"pretrain_log_std: must be in [-5, 1], got "
+                             f"{self.pretrain_log_std!r}")  # fmt: skip
         if self.vec_env not in VEC_ENVS:
             raise ValueError(f"vec_env: choose one of {', '.join(VEC_ENVS)}, got {self.vec_env!r}")
         if self.activation_fn not in ACTIVATIONS:
@@ -230,5 +254,7 @@ def rl_zoo_document(source: Any = None) -> str:
               "# edit that file, not this one. Usage:\n"
               "#   python -m rl_zoo3.train --algo ppo --env SRPB-Corridor-v0 "
               "--gym-packages srpb_gym \\\n"
-              "#       --conf-file configs/train/rl_zoo/ppo.yml --vec-env subproc\n")  # fmt: skip
+              "#       --conf-file configs/train/rl_zoo/ppo.yml --vec-env subproc\n"
+              "# The Zoo starts from random weights: the warm start from a classical planner\n"
+              "# (pretrain_* in configs/train/ppo.yaml) is srpb-gym train's own.\n")  # fmt: skip
     return header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)

@@ -185,6 +185,15 @@ def train(
             venv = VecNormalize(venv, gamma=config.gamma)
         model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
                     **config.ppo_kwargs())  # fmt: skip
+        if config.pretrain_planner:
+            from srpb_gym.training.pretrain import pretrain
+
+            report = pretrain(model, venv, env_id, kwargs, planner=config.pretrain_planner,
+                              episodes=config.pretrain_episodes, epochs=config.pretrain_epochs,
+                              noise=config.pretrain_noise, log_std=config.pretrain_log_std,
+                              gamma=config.gamma, log=log)  # fmt: skip
+            _update_run_json(out, {"warm_start": {"planner": config.pretrain_planner,
+                                                  **report}})  # fmt: skip
         tensorboard = make_output_format("tensorboard", os.path.join(out, "tb"))
         model.set_logger(Logger(out, [make_output_format("csv", out), tensorboard]))
         outcomes = Outcomes()
@@ -235,11 +244,16 @@ def _write_run_files(out: str, env_id: str, preset: str, env_kwargs: Mapping[str
 
 def _finish_run_json(out: str, steps: int, wall: float, interrupted: bool,
                      time_limit_reached: bool) -> None:  # fmt: skip
+    _update_run_json(out, {"steps": int(steps), "wall_time_s": round(wall, 1),
+                           "interrupted": interrupted,
+                           "time_limit_reached": time_limit_reached})  # fmt: skip
+
+
+def _update_run_json(out: str, values: Mapping[str, Any]) -> None:
     path = os.path.join(out, "run.json")
     with open(path, encoding="utf-8") as f:
         run = json.load(f)
-    run |= {"steps": int(steps), "wall_time_s": round(wall, 1), "interrupted": interrupted,
-            "time_limit_reached": time_limit_reached}  # fmt: skip
+    run |= dict(values)
     with open(path, "w", encoding="utf-8") as f:
         json.dump(run, f, indent=2)
 

@@ -1,0 +1,66 @@
+"""The behaviour-cloning warm start: returns computed as VecNormalize and PPO see them, and
+a cloned policy that acts like its planner with the statistics it was fitted on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from srpb_gym.training.pretrain import collect, discounted_returns, running_returns
+
+
+def test_discounted_returns_restart_at_each_episode_end():
+    rewards = np.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    dones = np.array([False, False, True, False, True])
+    out = discounted_returns(rewards, dones, 0.5)
+    # episode 1: 1 + 0.5 * (2 + 0.5 * 3) = 2.75; 2 + 1.5 = 3.5; 3; episode 2: 4 + 2.5, 5
+    np.testing.assert_allclose(out, [2.75, 3.5, 3.0, 6.5, 5.0])
+
+
+def test_running_returns_accumulate_like_vecnormalize():
+    rewards = np.array([1.0, 2.0, 3.0, 4.0])
+    dones = np.array([False, True, False, False])
+    np.testing.assert_allclose(running_returns(rewards, dones, 0.5), [1.0, 2.5, 3.0, 5.5])
+
+
+def test_collect_records_the_planner_action_not_the_noisy_one():
+    demos = collect("SRPB-Corridor-v0", {"reward": "task"}, "go-to-goal", 1, noise=0.3)
+    again = collect("SRPB-Corridor-v0", {"reward": "task"}, "go-to-goal", 1, noise=0.3)
+    assert demos.obs.shape[0] == demos.actions.shape[0] == demos.rewards.shape[0] > 10
+    assert demos.dones[-1] and demos.dones.sum() == 1
+    assert np.all(np.abs(demos.actions) <= 1.0)
+    np.testing.assert_array_equal(demos.actions, again.actions)  # seeded noise
+    clean = collect("SRPB-Corridor-v0", {"reward": "task"}, "go-to-goal", 1, noise=0.0)
+    assert not np.array_equal(clean.obs[:10], demos.obs[:10])  # the noise was executed
+    # and not recorded: go-to-goal's own command changes little from step to step, the
+    # noisy one would by about 0.3
+    assert np.abs(np.diff(demos.actions[:, 0])).mean() < 0.1
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_pretrain_clones_the_planner_and_sets_the_statistics():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from srpb_gym.training.config import TrainConfig
+    from srpb_gym.training.pretrain import pretrain
+    from srpb_gym.training.run import make_vec_env
+
+    config = TrainConfig(n_envs=1, n_steps=64, batch_size=64, net_arch=(64, 64))
+    venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, {"reward": "task"}, 0))
+    assert isinstance(venv.venv, DummyVecEnv)
+    model = PPO("MlpPolicy", venv, seed=0, **{**config.ppo_kwargs(), "n_steps": 64})
+    demos = collect("SRPB-Corridor-v0", {"reward": "task"}, "go-to-goal", 2, noise=0.0)
+    before, _ = model.predict(demos.obs, deterministic=True)
+    report = pretrain(model, venv, "SRPB-Corridor-v0", {"reward": "task"}, planner="go-to-goal",
+                      episodes=2, epochs=40, noise=0.0, log_std=-1.5, gamma=0.99,
+                      log=lambda _: None)  # fmt: skip
+    assert report["demo_episodes"] == 2 and report["demo_steps"] > 20
+    assert venv.obs_rms.count > report["demo_steps"] and venv.ret_rms.count > 1
+    np.testing.assert_allclose(model.policy.log_std.detach().numpy(), -1.5)
+    after, _ = model.predict(venv.normalize_obs(demos.obs), deterministic=True)
+    error_before = float(np.mean((before - demos.actions) ** 2))
+    error_after = float(np.mean((after - demos.actions) ** 2))
+    assert error_after < 0.1 * error_before, (error_before, error_after)
+    assert report["action_mse"] == pytest.approx(error_after, rel=0.5, abs=1e-3)
