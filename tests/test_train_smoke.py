@@ -95,6 +95,28 @@ def test_ctrl_c_saves_a_usable_model(tmp_path, monkeypatch):
     env.close()
 
 
+def test_sigterm_saves_like_ctrl_c(tmp_path, monkeypatch):
+    import os
+    import signal
+
+    def terminate(self):
+        if self.num_timesteps == 300:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return True
+
+    monkeypatch.setattr(callbacks.EpisodeStatsCallback, "_on_step",
+                        lambda self: terminate(self))  # fmt: skip
+    before = signal.getsignal(signal.SIGTERM)
+    config = resolve("SRPB-Corridor-v0", {"n_steps": 128, "batch_size": 64, "n_epochs": 1,
+                                          "net_arch": [16], "eval_freq": 0})  # fmt: skip
+    result = train("SRPB-Corridor-v0", config, out=str(tmp_path / "run"), progress=False,
+                   log=lambda line: None)  # fmt: skip
+    assert result.interrupted and 300 <= result.steps < 400
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["interrupted"] is True
+    assert (tmp_path / "run" / "model.zip").is_file()
+    assert signal.getsignal(signal.SIGTERM) is before  # the process's own handler is back
+
+
 def test_wall_clock_limit_stops_as_finished(tmp_path):
     small = {"n_steps": 64, "batch_size": 64, "n_envs": 1, "n_epochs": 1, "net_arch": [8],
              "eval_freq": 0}  # fmt: skip

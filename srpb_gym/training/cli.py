@@ -27,7 +27,7 @@ def add_train_command(subparsers: Any) -> None:
             "vecnormalize.pkl, best/ (the best periodic evaluation), config.yaml, "
             "command.txt, run.json (seed, versions, machine, wall time), progress.csv and "
             "TensorBoard logs (tb/: every reward term, every srpb/* metric, eval/*). "
-            "Ctrl-C saves the model and stops. Evaluate with "
+            "Ctrl-C or SIGTERM saves the model and stops. Evaluate with "
             "`srpb-gym eval --policy RUN/model.zip`."
         ),
     )

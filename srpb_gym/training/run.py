@@ -15,9 +15,10 @@ the callbacks of :mod:`srpb_gym.training.callbacks` and writes into the run fold
 | ``progress.csv``, ``tb/`` | the SB3 logger (CSV and TensorBoard) |
 | ``evaluations.csv``, ``eval/`` | the periodic evaluations (``srpb-gym eval`` run folders) |
 
-Ctrl-C stops training after the current step and still saves a usable ``model.zip`` and
-``vecnormalize.pkl`` (``run.json`` says ``"interrupted": true``). Subprocess environments
-ignore Ctrl-C, so that only the training process handles it.
+Ctrl-C, or SIGTERM (what a batch scheduler or ``kill`` sends), stops training after the
+current step and still saves a usable ``model.zip`` and ``vecnormalize.pkl`` (``run.json``
+says ``"interrupted": true``). Subprocess environments ignore Ctrl-C, so that only the
+training process handles it.
 """
 
 from __future__ import annotations
@@ -209,6 +210,7 @@ def train(
             callbacks.append(limit)
         started = time.perf_counter()
         interrupted = False
+        previous = _stop_on_sigterm()
         try:
             model.learn(config.n_timesteps, callback=CallbackList(callbacks), log_interval=1,
                         tb_log_name="tb", progress_bar=False)  # fmt: skip
@@ -216,6 +218,8 @@ def train(
             interrupted = True
             log(f"interrupted at step {model.num_timesteps}: saving the model")
         finally:
+            if previous is not None:
+                signal.signal(signal.SIGTERM, previous)
             wall = time.perf_counter() - started
             save_checkpoint(model, out)
             _finish_run_json(out, model.num_timesteps, wall, interrupted,
@@ -226,6 +230,20 @@ def train(
             bar.bar.close()
         venv.close()
     return TrainResult(out, int(model.num_timesteps), wall, interrupted)
+
+
+def _stop_on_sigterm() -> Any:
+    """Make SIGTERM stop training as Ctrl-C does (in the main thread only, where Python
+    delivers signals); returns the handler to restore, or ``None``."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return None
+
+    def stop(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    return signal.signal(signal.SIGTERM, stop)
 
 
 def _write_run_files(out: str, env_id: str, preset: str, env_kwargs: Mapping[str, Any],
