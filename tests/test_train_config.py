@@ -42,7 +42,7 @@ def test_ppo_kwargs_build_the_networks():
     pytest.importorskip("torch")
     from torch import nn
 
-    kwargs = resolve("SRPB-Crowd-v0", {"activation_fn": "relu", "net_arch": [32]}).ppo_kwargs()
+    kwargs = resolve("SRPB-Corridor-v0", {"activation_fn": "relu", "net_arch": [32]}).ppo_kwargs()
     assert kwargs["policy_kwargs"] == {"net_arch": {"pi": [32], "vf": [32]},
                                        "activation_fn": nn.ReLU}  # fmt: skip
     assert kwargs["n_steps"] == 512 and "n_timesteps" not in kwargs
@@ -74,7 +74,7 @@ def test_file_errors_name_file_line_and_key(tmp_path, text, expected):
     [
         (["learnin_rate=1e-4"], "--hyperparams: learnin_rate: unknown key"),
         (["n_steps=1"], "--hyperparams: n_steps: must be >= 2, got 1"),
-        (["batch_size=4096"], "batch_size: 4096 is more than the 1024 steps of one rollout"),
+        (["batch_size=16384"], "batch_size: 16384 is more than the 8192 steps of one rollout"),
         (["net_arch=hello"], "--hyperparams: net_arch: expected a list"),
         (["n_steps"], "--hyperparams: expected KEY=VALUE, got 'n_steps'"),
         (["n_steps=[1"], "--hyperparams: n_steps:"),

@@ -35,7 +35,12 @@ MODELS: dict[str, tuple[str, str]] = {
 }
 #: name -> seed and hyperparameter overrides of the run that made the shipped model, where
 #: they differ from seed 0 and configs/train/ppo.yaml (the model card has the command)
-RUN_SETTINGS: dict[str, tuple[int, tuple[str, ...]]] = {}
+WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
+RUN_SETTINGS: dict[str, tuple[int, tuple[str, ...]]] = {
+    "ppo-fformation-srpb": (0, WARM_START),
+    "ppo-crowd-srpb": (0, WARM_START),
+    "ppo-mix-srpb": (0, WARM_START),
+}
 
 
 def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:

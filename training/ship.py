@@ -51,7 +51,8 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| environment | `{card['env']}` |",
         f"| reward preset | `{card['reward']}` |",
         f"| steps | {t['steps']:,} |",
-        f"| wall time | {t['wall_time_s'] / 60:.1f} min |",
+        f"| wall time | {_wall_time(t)} |",
+        f"| warm start | {_warm_start(t.get('warm_start'))} |",
         f"| machine | {t['machine']['cpu_count']} cores ({t['machine']['processor']}), "
         f"{t['machine']['system']}, torch threads {t['machine']['torch_threads']} |",
         f"| seed | {card['seed']} |",
@@ -73,6 +74,23 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
               f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
               "1000000)."]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _wall_time(training: dict[str, Any]) -> str:
+    ppo = training["wall_time_s"] / 60
+    warm = training.get("warm_start")
+    if not warm:
+        return f"{ppo:.1f} min"
+    pre = warm["wall_time_s"] / 60
+    return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO)"
+
+
+def _warm_start(warm: dict[str, Any] | None) -> str:
+    if not warm:
+        return "none (random initial weights)"
+    return (f"behaviour cloning of `{warm['planner']}`: {warm['demo_episodes']} episodes, "
+            f"{warm['demo_steps']:,} steps ({100 * warm['demo_success']:.0f} % success), "
+            f"action MSE {warm['action_mse']:.3f}")  # fmt: skip
 
 
 def best_step(run: Path) -> int | None:
@@ -122,7 +140,8 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[st
         "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
                      "machine": info["machine"], "versions": info["versions"],
                      "command": (run / "command.txt").read_text(encoding="utf-8").strip(),
-                     "time_limit_reached": info.get("time_limit_reached", False)},
+                     "time_limit_reached": info.get("time_limit_reached", False),
+                     "warm_start": info.get("warm_start")},
         "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results},
     }  # fmt: skip
     (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
