@@ -177,3 +177,49 @@ def test_warm_start_from_a_planner_is_recorded(tmp_path):
     assert warm["demo_steps"] > 10 and 0.0 <= warm["demo_success"] <= 1.0
     assert any(line.startswith("warm start from go-to-goal") for line in lines)
     assert result.steps == 256
+
+
+def test_init_starts_from_a_trained_model(tmp_path):
+    import numpy as np
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from srpb_gym.errors import InputError
+    from srpb_gym.planners.learned import load_vecnormalize
+    from srpb_gym.training.run import _load_init, make_vec_env, resolve_init
+
+    small = {"n_timesteps": 256, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
+             "net_arch": [16], "eval_freq": 0}  # fmt: skip
+    config = resolve("SRPB-Corridor-v0", small)
+    first = train("SRPB-Corridor-v0", config, preset="task", out=str(tmp_path / "a"),
+                  progress=False, log=lambda line: None)  # fmt: skip
+    path, stats = resolve_init(first.out)  # a run folder
+    assert path.endswith("model.zip") and stats is not None and stats.endswith(".pkl")
+    assert resolve_init(path) == (path, stats)  # the file itself
+
+    venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, {"reward": "srpb"}, 1))
+    model = PPO("MlpPolicy", venv, seed=1, **config.ppo_kwargs())
+    _load_init(model, venv, path, stats)
+    trained = PPO.load(path).policy.state_dict()
+    for key, value in model.policy.state_dict().items():
+        np.testing.assert_array_equal(value.numpy(), trained[key].numpy(), err_msg=key)
+    np.testing.assert_array_equal(venv.obs_rms.mean, load_vecnormalize(stats).obs_rms.mean)
+    venv.close()
+
+    lines: list[str] = []
+    second = train("SRPB-Corridor-v0", config, preset="srpb", out=str(tmp_path / "b"),
+                   progress=False, log=lines.append, init=first.out)  # fmt: skip
+    assert json.loads((tmp_path / "b" / "run.json").read_text())["init"]["model"] == path
+    assert second.steps == 256 and lines[0].startswith("starting from")
+
+    with pytest.raises(InputError, match="do not fit"):
+        train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small, "net_arch": [8]}),
+              out=str(tmp_path / "c"), progress=False, log=lambda line: None,
+              init=first.out)  # fmt: skip
+    with pytest.raises(InputError, match="not both"):
+        train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small,
+                                                               "pretrain_planner": "dwa"}),
+              out=str(tmp_path / "d"), progress=False, log=lambda line: None,
+              init=first.out)  # fmt: skip
+    with pytest.raises(InputError, match="no model file"):
+        resolve_init(str(tmp_path / "nothing"))

@@ -10,6 +10,11 @@ configs/train/ppo.yaml, stopped after at most ``--max-minutes`` (60) of wall tim
 unseen seeds (from 10000) and writes ``srpb_gym/models/<name>/`` with its model card.
 On a 2-core machine two runs side by side (``--jobs 2``, one torch thread each) finish
 sooner than one after the other.
+
+Some models start from something else than random weights, as their cards say: a warm
+start from ``dwa``'s demonstrations (``pretrain_planner``), or the best checkpoint of a
+shorter ``task`` run that the ``srpb`` run then fine-tunes (``--init``); the two stages
+together stay within ``--max-minutes``.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 from srpb_gym.models import model_names
 
@@ -33,26 +39,54 @@ MODELS: dict[str, tuple[str, str]] = {
     "ppo-crowd-srpb": ("SRPB-Crowd-v0", "srpb"),
     "ppo-mix-srpb": ("SRPB-Mix-v0", "srpb"),
 }
-#: name -> seed and hyperparameter overrides of the run that made the shipped model, where
-#: they differ from seed 0 and configs/train/ppo.yaml (the model card has the command)
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """How a shipped model was made, where it differs from seed 0, configs/train/ppo.yaml
+    and random initial weights (the model card has the exact commands).
+
+    ``overrides``: ``--hyperparams`` of the run; ``start``: (preset, minutes) of a first
+    run whose best checkpoint the model's own run starts from (``--init``)."""
+
+    seed: int = 0
+    overrides: tuple[str, ...] = ()
+    start: tuple[str, float] | None = None
+
+
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
-RUN_SETTINGS: dict[str, tuple[int, tuple[str, ...]]] = {
-    "ppo-fformation-srpb": (0, WARM_START),
-    "ppo-crowd-srpb": (0, WARM_START),
-    "ppo-mix-srpb": (0, WARM_START),
+RUN_SETTINGS: dict[str, RunSettings] = {
+    "ppo-fformation-srpb": RunSettings(overrides=WARM_START),
+    "ppo-crowd-srpb": RunSettings(start=("task", 17.0)),
+    "ppo-mix-srpb": RunSettings(overrides=WARM_START),
 }
 
 
 def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
     env_id, preset = MODELS[name]
-    seed, overrides = RUN_SETTINGS.get(name, (0, ()))
-    run = f"runs/train/{name}-{time.strftime('%Y%m%d-%H%M%S')}"
-    train = ["srpb-gym", "train", "--env", env_id, "--reward", preset, "--seed", str(seed),
-             "--max-minutes", f"{max_minutes:g}", "--out", run, "--no-progress"]  # fmt: skip
-    hyperparams = [*overrides, *([f"torch_threads={threads}"] if threads else [])]
-    if hyperparams:
-        train += ["--hyperparams", *hyperparams]
-    return [train, [sys.executable, "-m", "training.ship", run, "--name", name]]
+    settings = RUN_SETTINGS.get(name, RunSettings())
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    run = f"runs/train/{name}-{stamp}"
+    hyperparams = [*settings.overrides, *([f"torch_threads={threads}"] if threads else [])]
+
+    def train(reward: str, minutes: float, out: str) -> list[str]:
+        cmd = ["srpb-gym", "train", "--env", env_id, "--reward", reward, "--seed",
+               str(settings.seed), "--max-minutes", f"{minutes:g}", "--out", out,
+               "--no-progress"]  # fmt: skip
+        return cmd + (["--hyperparams", *hyperparams] if hyperparams else [])
+
+    out: list[list[str]] = []
+    if settings.start is not None:
+        start_preset, start_minutes = settings.start
+        if start_minutes >= max_minutes:
+            raise ValueError(f"{name}: its first stage alone takes {start_minutes:g} of the "
+                             f"{max_minutes:g} minutes")  # fmt: skip
+        first = f"runs/train/{name}-start-{stamp}"
+        out.append(train(start_preset, start_minutes, first))
+        out.append([*train(preset, max_minutes - start_minutes, run), "--init", f"{first}/best"])
+    else:
+        out.append(train(preset, max_minutes, run))
+    return [*out, [sys.executable, "-m", "training.ship", run, "--name", name]]
 
 
 def main() -> int:

@@ -52,7 +52,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| reward preset | `{card['reward']}` |",
         f"| steps | {t['steps']:,} |",
         f"| wall time | {_wall_time(t)} |",
-        f"| warm start | {_warm_start(t.get('warm_start'))} |",
+        f"| initial weights | {_start(t)} |",
         f"| machine | {t['machine']['cpu_count']} cores ({t['machine']['processor']}), "
         f"{t['machine']['system']}, torch threads {t['machine']['torch_threads']} |",
         f"| seed | {card['seed']} |",
@@ -85,9 +85,12 @@ def _wall_time(training: dict[str, Any]) -> str:
     return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO)"
 
 
-def _warm_start(warm: dict[str, Any] | None) -> str:
+def _start(training: dict[str, Any]) -> str:
+    init, warm = training.get("init"), training.get("warm_start")
+    if init:
+        return f"from the trained model `{init['model']}` (see the command)"
     if not warm:
-        return "none (random initial weights)"
+        return "random"
     return (f"behaviour cloning of `{warm['planner']}`: {warm['demo_episodes']} episodes, "
             f"{warm['demo_steps']:,} steps ({100 * warm['demo_success']:.0f} % success), "
             f"action MSE {warm['action_mse']:.3f}")  # fmt: skip
@@ -141,7 +144,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[st
                      "machine": info["machine"], "versions": info["versions"],
                      "command": (run / "command.txt").read_text(encoding="utf-8").strip(),
                      "time_limit_reached": info.get("time_limit_reached", False),
-                     "warm_start": info.get("warm_start")},
+                     "warm_start": info.get("warm_start"), "init": info.get("init")},
         "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results},
     }  # fmt: skip
     (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")

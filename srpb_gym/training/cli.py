@@ -45,6 +45,9 @@ def add_train_command(subparsers: Any) -> None:
     p.add_argument("--out", metavar="DIR", help="run folder (default runs/train/ID-PRESET-TIME)")
     p.add_argument("--max-minutes", type=float, metavar="M",
                    help="stop after M minutes of wall time (the model is saved)")  # fmt: skip
+    p.add_argument("--init", metavar="MODEL",
+                   help="start from a trained model (model.zip, its run folder or a shipped "
+                   "model's name, e.g. ppo-crowd-task) instead of random weights")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run_train)
 
@@ -67,6 +70,7 @@ def run_train(args: argparse.Namespace) -> int:
     result = train(args.env, config, preset=args.reward, seed=args.seed, out=args.out,
                    env_kwargs=env_kwargs, progress=not args.no_progress,
                    argv=getattr(args, "argv", ()), max_minutes=args.max_minutes,
+                   init=args.init,
                    log=lambda line: print(f"srpb-gym: {line}", file=sys.stderr))  # fmt: skip
     state = "interrupted" if result.interrupted else "finished"
     print(f"{state} after {result.steps} steps in {result.wall_time:.0f} s; run in {result.out}")

@@ -152,10 +152,14 @@ def train(
     log: Callable[[str], None] = print,
     device: str = "cpu",
     max_minutes: float | None = None,
+    init: str | None = None,
 ) -> TrainResult:
     """Train PPO on ``env_id`` with reward preset ``preset``; see the module docstring.
     ``max_minutes``: stop after this much wall time even if steps remain (``run.json``
-    then says ``"time_limit_reached": true``)."""
+    then says ``"time_limit_reached": true``). ``init``: start from the weights and
+    observation statistics of a trained model (its ``model.zip``, the run folder holding
+    it, or a shipped model's name) instead of random weights; the reward statistics start
+    afresh, as the reward may differ (fine-tuning a ``task`` model with ``srpb``)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.logger import Logger, make_output_format
@@ -170,6 +174,10 @@ def train(
                          f"{', '.join(changing)}: set eval_freq=0 (--hyperparams) or leave "
                          "them out", key="--env-kwargs")  # fmt: skip
     check_env_args(env_id, preset, env_kwargs, config.gamma)
+    if init is not None and config.pretrain_planner:
+        raise InputError("start from a trained model or from a planner's demonstrations "
+                         "(pretrain_planner), not both", key="--init")  # fmt: skip
+    init_model = None if init is None else resolve_init(init)
     kwargs = {"reward": preset, **env_kwargs}
     if config.torch_threads > 0:
         import torch
@@ -186,6 +194,11 @@ def train(
             venv = VecNormalize(venv, gamma=config.gamma)
         model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
                     **config.ppo_kwargs())  # fmt: skip
+        if init_model is not None:
+            _load_init(model, venv, *init_model)
+            _update_run_json(out, {"init": {"model": init_model[0],
+                                            "vecnormalize": init_model[1]}})  # fmt: skip
+            log(f"starting from {init_model[0]}")
         if config.pretrain_planner:
             from srpb_gym.training.pretrain import pretrain
 
@@ -230,6 +243,46 @@ def train(
             bar.bar.close()
         venv.close()
     return TrainResult(out, int(model.num_timesteps), wall, interrupted)
+
+
+def resolve_init(given: str) -> tuple[str, str | None]:
+    """The ``model.zip`` and ``vecnormalize.pkl`` (or ``None``) that ``--init`` names: a
+    file, a folder holding ``model.zip``, or a shipped model's name."""
+    from srpb_gym.models import model_path
+    from srpb_gym.planners.learned import find_vecnormalize
+
+    path = given
+    if os.path.isdir(path):
+        path = os.path.join(path, "model.zip")
+    if not os.path.isfile(path):
+        shipped = model_path(given)
+        if shipped is None:
+            raise InputError(f"no model file, run folder with model.zip or shipped model "
+                             f"named {given!r}", key="--init")  # fmt: skip
+        path = str(shipped)
+    return path, find_vecnormalize(path)
+
+
+def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None) -> None:
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from srpb_gym.planners.learned import load_vecnormalize
+
+    try:
+        model.set_parameters(path, exact_match=True, device=model.device)
+    except (RuntimeError, ValueError, KeyError) as exc:
+        raise InputError(f"{path}: its networks do not fit this run's spaces and net_arch "
+                         f"({str(exc).splitlines()[0]})", key="--init") from None  # fmt: skip
+    if isinstance(venv, VecNormalize):
+        if vecnormalize is None:
+            raise InputError(f"{path}: no vecnormalize.pkl beside it, and this run "
+                             "normalises observations (normalize: true)", key="--init")  # fmt: skip
+        saved = load_vecnormalize(vecnormalize)
+        if saved.obs_rms.mean.shape != venv.obs_rms.mean.shape:
+            raise InputError(f"{vecnormalize}: statistics of {saved.obs_rms.mean.shape} "
+                             f"observations, this environment has "
+                             f"{venv.obs_rms.mean.shape}", key="--init")  # fmt: skip
+        venv.obs_rms = saved.obs_rms.copy()
 
 
 def _stop_on_sigterm() -> Any:
