@@ -209,7 +209,8 @@ def test_init_starts_from_a_trained_model(tmp_path):
     lines: list[str] = []
     second = train("SRPB-Corridor-v0", config, preset="srpb", out=str(tmp_path / "b"),
                    progress=False, log=lines.append, init=first.out)  # fmt: skip
-    assert json.loads((tmp_path / "b" / "run.json").read_text())["init"]["model"] == path
+    init = json.loads((tmp_path / "b" / "run.json").read_text())["init"]
+    assert init["model"] == path and init["steps"] == first.steps == 256
     assert second.steps == 256 and lines[0].startswith("starting from")
 
     with pytest.raises(InputError, match="do not fit"):

@@ -6,15 +6,19 @@ scenario.
     python -m training.plot_curves --out docs/figures
 
 Reads ``srpb_gym/models/ppo-<scenario>-<preset>/evaluations.csv`` (a run folder's
-``evaluations.csv`` is the same file) and writes ``learning_<scenario>.png``.
+``evaluations.csv`` is the same file) and writes ``learning_<scenario>.png``. A model that
+started from another trained model (its card's ``training.init``) is drawn from the steps
+that model had taken, so that a fine-tuning continues the curve it started from.
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from pathlib import Path
+from typing import Any
 
 from srpb_gym.evaluation.figures import pyplot
 
@@ -38,12 +42,21 @@ def read_curve(path: Path) -> dict[str, list[float]]:
     return out
 
 
-def plot(scenario: str, curves: dict[str, dict[str, list[float]]], out: Path) -> Path:
+def start_step(folder: Path) -> int:
+    """The steps of the model a shipped model started from (0: random weights)."""
+    card = folder / "card.json"
+    if not card.is_file():
+        return 0
+    init = json.loads(card.read_text(encoding="utf-8")).get("training", {}).get("init")
+    return int(init["steps"]) if init else 0
+
+
+def plot(scenario: str, curves: dict[str, dict[str, Any]], out: Path) -> Path:
     plt = pyplot()
     fig, axes = plt.subplots(1, len(PANELS), figsize=(12, 3.2), constrained_layout=True)
     for ax, (key, label, _) in zip(axes, PANELS):
-        for preset, curve in sorted(curves.items()):
-            ax.plot(curve["step"], curve[key], marker="o", markersize=3, label=preset)
+        for _, curve in sorted(curves.items()):
+            ax.plot(curve["step"], curve[key], marker="o", markersize=3, label=curve["label"])
         ax.set_xlabel("training steps")
         if key in ("success", "collision"):
             ax.set_ylim(-3, 103)
@@ -62,11 +75,15 @@ def main() -> int:
     parser.add_argument("--models", type=Path, default=MODELS_DIR)
     parser.add_argument("--out", type=Path, default=Path("docs/figures"))
     args = parser.parse_args()
-    curves: dict[str, dict[str, dict[str, list[float]]]] = {}
+    curves: dict[str, dict[str, dict[str, Any]]] = {}
     for folder in sorted(args.models.glob("ppo-*-*")):
         _, scenario, preset = folder.name.split("-", 2)
         if (folder / "evaluations.csv").is_file():
-            curves.setdefault(scenario, {})[preset] = read_curve(folder / "evaluations.csv")
+            curve: dict[str, Any] = read_curve(folder / "evaluations.csv")
+            offset = start_step(folder)
+            curve["step"] = [offset + step for step in curve["step"]]
+            curve["label"] = preset if not offset else f"{preset} (from the task model)"
+            curves.setdefault(scenario, {})[preset] = curve
     args.out.mkdir(parents=True, exist_ok=True)
     for scenario, by_preset in curves.items():
         print(f"wrote {plot(scenario, by_preset, args.out)}")

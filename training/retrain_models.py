@@ -55,8 +55,11 @@ class RunSettings:
 
 
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
+#: where PPO with the srpb preset does not learn from random weights (fformation, crowd),
+#: the srpb specialist fine-tunes its task specialist's best checkpoint; the generalist
+#: starts from dwa's demonstrations
 RUN_SETTINGS: dict[str, RunSettings] = {
-    "ppo-fformation-srpb": RunSettings(overrides=WARM_START),
+    "ppo-fformation-srpb": RunSettings(start=("task", 29.0)),
     "ppo-crowd-srpb": RunSettings(start=("task", 17.0)),
     "ppo-mix-srpb": RunSettings(overrides=WARM_START),
 }

@@ -26,7 +26,7 @@ import yaml
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.training.callbacks import eval_score, summarize_results
-from srpb_gym.training.run import eval_env_ids
+from srpb_gym.training.run import eval_env_ids, model_steps
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
@@ -85,10 +85,20 @@ def _wall_time(training: dict[str, Any]) -> str:
     return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO)"
 
 
+def _init(init: dict[str, Any] | None) -> dict[str, Any] | None:
+    """The starting model of a run, with the steps it had taken."""
+    if init and "steps" not in init:  # a run folder of an earlier version
+        init = {**init, "steps": model_steps(init["model"])}
+    return init
+
+
 def _start(training: dict[str, Any]) -> str:
     init, warm = training.get("init"), training.get("warm_start")
     if init:
-        return f"from the trained model `{init['model']}` (see the command)"
+        return (
+            f"the trained model `{init['model']}` after {init['steps']:,} steps "
+            "(see the command); steps and wall time here are this run's own"
+        )
     if not warm:
         return "random"
     return (f"behaviour cloning of `{warm['planner']}`: {warm['demo_episodes']} episodes, "
@@ -144,7 +154,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[st
                      "machine": info["machine"], "versions": info["versions"],
                      "command": (run / "command.txt").read_text(encoding="utf-8").strip(),
                      "time_limit_reached": info.get("time_limit_reached", False),
-                     "warm_start": info.get("warm_start"), "init": info.get("init")},
+                     "warm_start": info.get("warm_start"), "init": _init(info.get("init"))},
         "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results},
     }  # fmt: skip
     (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")

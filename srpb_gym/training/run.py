@@ -197,7 +197,8 @@ def train(
         if init_model is not None:
             _load_init(model, venv, *init_model)
             _update_run_json(out, {"init": {"model": init_model[0],
-                                            "vecnormalize": init_model[1]}})  # fmt: skip
+                                            "vecnormalize": init_model[1],
+                                            "steps": model_steps(init_model[0])}})  # fmt: skip
             log(f"starting from {init_model[0]}")
         if config.pretrain_planner:
             from srpb_gym.training.pretrain import pretrain
@@ -261,6 +262,14 @@ def resolve_init(given: str) -> tuple[str, str | None]:
                              f"named {given!r}", key="--init")  # fmt: skip
         path = str(shipped)
     return path, find_vecnormalize(path)
+
+
+def model_steps(path: str) -> int:
+    """The training steps a saved SB3 model had taken (its ``num_timesteps``)."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+    return int(data.get("num_timesteps", 0))
 
 
 def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None) -> None:
