@@ -25,7 +25,9 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
                "--seed", "3", "--hyperparams", *SMALL, "eval_freq=512", "--out", str(out),
                "--no-progress"])  # fmt: skip
     assert rc == 0
-    assert "finished after 1024 steps" in capsys.readouterr().out
+    captured = capsys.readouterr()
+    assert "finished after 1024 steps" in captured.out
+    assert "episode/s" not in captured.err  # --no-progress: no bar, evaluations included
     for name in (
         "model.zip",
         "vecnormalize.pkl",

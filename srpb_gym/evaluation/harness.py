@@ -59,14 +59,16 @@ class RunOutcome:
         return len({(r.env, r.planner, r.seed) for r in self.results})
 
 
-def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None) -> RunOutcome:
+def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None,
+                   progress: bool = True) -> RunOutcome:  # fmt: skip
     """Run every episode of ``config`` and write every artifact into ``config.out``.
 
     Ctrl-C stops the run: the finished episodes stay on disk with their CSV rows, the
     summary and tables of what finished are written (figures are not) and the outcome says
     ``interrupted``. With ``config.resume`` the finished episodes of the run in
     ``config.out`` are kept and only the others run. ``log`` receives one-line warnings
-    (a missing plotting library, a dropped unfinished CSV line).
+    (a missing plotting library, a dropped unfinished CSV line). ``progress``: a progress
+    bar of episodes on stderr.
     """
     log = log or (lambda line: print(f"srpb-gym: {line}", file=sys.stderr))
     out = config.out
@@ -83,7 +85,7 @@ def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None)
         done, tasks = [], tasks_of(config)
     results: list[EpisodeResult] = list(done)
     writer = stats.EpisodeWriter(os.path.join(out, "episodes.csv"), done, config.robots > 1)
-    bar = _progress(len(tasks), config.robots)
+    bar = _progress(len(tasks), config.robots) if progress else _NoBar()
     try:
         interrupted = run_tasks(config, tasks, lambda r: _record(r, results, writer, bar))
     finally:

@@ -160,8 +160,9 @@ class PeriodicEvalCallback(BaseCallback):
     to ``<run>/best``. Only the latest and the best checkpoints are kept."""
 
     def __init__(self, run_dir: str, env_ids: Sequence[str], eval_freq: int, episodes: int,
-                 log: Any = None) -> None:  # fmt: skip
+                 log: Any = None, progress: bool = True) -> None:  # fmt: skip
         super().__init__()
+        self.progress = progress
         self.run_dir, self.env_ids = run_dir, list(env_ids)
         self.eval_freq, self.episodes = eval_freq, episodes
         self.log = log or (lambda line: None)
@@ -192,7 +193,7 @@ class PeriodicEvalCallback(BaseCallback):
             seed=EVAL_SEED, out=os.path.join(self.run_dir, "eval", f"step_{step:09d}"),
             warmup=0, log=None,
         )  # fmt: skip
-        outcome = run_evaluation(config, log=self.log)
+        outcome = run_evaluation(config, log=self.log, progress=self.progress)
         figures = summarize_results(outcome.results)
         rows = []
         for env_id, fig in figures.items():

@@ -218,7 +218,7 @@ def train(
             callbacks.append(bar)
         if config.eval_freq > 0:
             callbacks.append(PeriodicEvalCallback(out, eval_env_ids(env_id), config.eval_freq,
-                                                  config.eval_episodes, log))  # fmt: skip
+                                                  config.eval_episodes, log, progress))  # fmt: skip
         limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)
         if limit is not None:
             callbacks.append(limit)
