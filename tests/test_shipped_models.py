@@ -69,7 +69,7 @@ def test_eval_takes_a_short_name(name, tmp_path, capsys):
 def test_retraining_commands_follow_each_model_recipe():
     from training.retrain_models import commands
 
-    plain = commands("ppo-corridor-task", 60, 0)
+    plain = commands("ppo-crowd-task", 60, 0)
     assert len(plain) == 2 and "--init" not in plain[0] and "--hyperparams" not in plain[0]
     warm = commands("ppo-mix-srpb", 60, 1)[0]
     hyper = warm[warm.index("--hyperparams") + 1 :]

@@ -55,11 +55,16 @@ class RunSettings:
 
 
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
-#: where PPO with the srpb preset does not learn from random weights (fformation, crowd),
-#: the srpb specialist fine-tunes its task specialist's best checkpoint; the generalist
-#: starts from dwa's demonstrations
+LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
+#: corridor and fformation: both presets start from the same clone of dwa and train with
+#: the crowd's larger rollout, so that the presets are all that differs; crowd: the srpb
+#: specialist fine-tunes the task run's best checkpoint (from random weights the srpb
+#: preset learns to wait); the generalist starts from the clone of dwa
 RUN_SETTINGS: dict[str, RunSettings] = {
-    "ppo-fformation-srpb": RunSettings(start=("task", 29.0)),
+    "ppo-corridor-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
+    "ppo-corridor-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
+    "ppo-fformation-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
+    "ppo-fformation-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-crowd-srpb": RunSettings(start=("task", 17.0)),
     "ppo-mix-srpb": RunSettings(overrides=WARM_START),
 }

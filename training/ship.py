@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import shutil
 import sys
 from pathlib import Path
@@ -87,9 +88,20 @@ def _wall_time(training: dict[str, Any]) -> str:
 
 def _init(init: dict[str, Any] | None) -> dict[str, Any] | None:
     """The starting model of a run, with the steps it had taken."""
-    if init and "steps" not in init:  # a run folder of an earlier version
-        init = {**init, "steps": model_steps(init["model"])}
-    return init
+    if not init:
+        return None
+    steps = init.get("steps")
+    if steps is None:  # a run folder of an earlier version
+        steps = model_steps(init["model"])
+    stats = init.get("vecnormalize")
+    return {**init, "model": _relative(init["model"]), "steps": steps,
+            "vecnormalize": stats and _relative(stats)}  # fmt: skip
+
+
+def _relative(path: str) -> str:
+    """``path`` relative to the working directory (the repository) when it is inside it."""
+    relative = os.path.relpath(path)
+    return path if relative.startswith("..") else relative
 
 
 def _start(training: dict[str, Any]) -> str:
