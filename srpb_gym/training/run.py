@@ -27,6 +27,7 @@ import json
 import os
 import platform
 import shlex
+import shutil
 import signal
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -195,7 +196,11 @@ def train(
         model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
                     **config.ppo_kwargs())  # fmt: skip
         if init_model is not None:
-            _load_init(model, venv, *init_model)
+            try:
+                _load_init(model, venv, *init_model)
+            except InputError:  # nothing trained: leave no run folder behind
+                shutil.rmtree(out, ignore_errors=True)
+                raise
             _update_run_json(out, {"init": {"model": init_model[0],
                                             "vecnormalize": init_model[1],
                                             "steps": model_steps(init_model[0])}})  # fmt: skip
