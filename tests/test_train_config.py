@@ -94,6 +94,11 @@ def test_override_errors(items, expected):
 def test_overrides_are_read_as_plain_data_only():
     assert parse_overrides(["net_arch=[64, 64]", "gamma=0.98"]) == {"net_arch": [64, 64],
                                                                     "gamma": 0.98}  # fmt: skip
+    # numbers with an exponent are numbers, as in Python (YAML 1.1 reads 1e-4 as a string)
+    assert parse_overrides(["learning_rate=1e-4", "n_timesteps=2e6", "clip_range=1.5E-1"]) == {
+        "learning_rate": 1e-4, "n_timesteps": 2e6, "clip_range": 0.15}  # fmt: skip
+    words = parse_overrides(["policy=2e", "activation_fn=e5"])
+    assert words == {"policy": "2e", "activation_fn": "e5"}
     with pytest.raises(InputError, match=r"tag"):
         parse_overrides(["n_steps=!!python/object/apply:os.system ['true']"])
 

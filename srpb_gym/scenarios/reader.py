@@ -15,17 +15,17 @@ from typing import Any
 from srpb_gym.errors import InputError
 from srpb_gym.scenarios.schema import IntRange, Place, Point, Range, located_error
 
-EXPONENT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")  # text to YAML 1.1, if no "."
+EXPONENT = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")  # a number, if not quoted
 MAX_COORDINATE = 1e6  # m, largest absolute coordinate
 
 
 def describe(value: Any) -> str:
-    """What ``value`` is, for an error message (with a hint for text like ``1e-3``)."""
+    """What ``value`` is, for an error message (with a hint for a quoted number like ``'1e-3'``)."""
     kind = {dict: "a mapping", list: "a list", str: "a string", bool: "a boolean"}
     text = repr(value)
     text = text if len(text) <= 40 else text[:37] + "..."
     hint = isinstance(value, str) and EXPONENT.fullmatch(value.strip()) is not None
-    hint *= " (YAML reads it as text: write 1.0e-3, not 1e-3 or 1.0e3)"
+    hint *= " (quoted, a number is text: leave out the quotes)"
     return f"{kind.get(type(value), type(value).__name__)} {text}{hint}"
 
 

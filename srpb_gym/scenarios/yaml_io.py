@@ -14,6 +14,7 @@ Imports nothing of ``srpb_gym`` but :mod:`srpb_gym.errors`.
 from __future__ import annotations
 
 import codecs
+import re
 from typing import Any
 
 import yaml
@@ -84,6 +85,15 @@ class _Loader(yaml.SafeLoader):
             return super().compose_node(parent, index)
         finally:
             self.depth -= 1
+
+
+# YAML 1.1 (PyYAML) reads 1e-4 and 1.0e4 as strings: its floats need a dot and a signed
+# exponent. Numbers with an exponent are floats here, as in YAML 1.2 and Python.
+_Loader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+.0123456789"),
+)
 
 
 class _Refused(yaml.MarkedYAMLError):

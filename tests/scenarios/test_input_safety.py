@@ -319,12 +319,11 @@ VALUES = {
         "time_limit",
         "expected a finite number, got int 1000000000000000000000000000000000000...",
     ),
-    "exponent without a dot": (
-        {"time_limit: 30.0": "time_limit: 3e1"},
+    "quoted number": (
+        {"time_limit: 30.0": "time_limit: '3e1'"},
         2,
         "time_limit",
-        "expected a number, got a string '3e1' (YAML reads it as text: write 1.0e-3, not "
-        "1e-3 or 1.0e3)",
+        "expected a number, got a string '3e1' (quoted, a number is text: leave out the quotes)",
     ),
     "goal tolerance inf": (
         {"    position: [9.0, 3.0]": "    position: [9.0, 3.0]\n  goal_tolerance: .inf"},
@@ -391,6 +390,13 @@ def test_values_that_cannot_be_right(tmp_path, case):
         load_scenario(path)
     assert str(info.value) == f"{path}:{line}: {key}: {message}"
     assert (info.value.line, info.value.key) == (line, key)
+
+
+def test_numbers_with_an_exponent_are_numbers(tmp_path):
+    # YAML 1.1 reads 3e1 and 3.0e1 as text; these files read them as Python does
+    for text in ("3e1", "3.0e1", "300e-1", ".3e2"):
+        edits = {"time_limit: 30.0": f"time_limit: {text}"}
+        assert load_scenario(_write(tmp_path, GOOD, edits)).time_limit == 30.0
 
 
 def test_full_turns_are_fine(tmp_path):
