@@ -220,6 +220,10 @@ def test_init_starts_from_a_trained_model(tmp_path):
               out=str(tmp_path / "c"), progress=False, log=lambda line: None,
               init=first.out)  # fmt: skip
     assert not (tmp_path / "c").exists()  # refused before training: no run folder left
+    with pytest.raises(InputError, match="this run does not normalise"):
+        train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small, "normalize": False}),
+              out=str(tmp_path / "e"), progress=False, log=lambda line: None,
+              init=first.out)  # fmt: skip
     with pytest.raises(InputError, match="not both"):
         train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small,
                                                                "pretrain_planner": "dwa"}),

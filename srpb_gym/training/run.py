@@ -287,16 +287,21 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None) -> No
     except (RuntimeError, ValueError, KeyError) as exc:
         raise InputError(f"{path}: its networks do not fit this run's spaces and net_arch "
                          f"({str(exc).splitlines()[0]})", key="--init") from None  # fmt: skip
-    if isinstance(venv, VecNormalize):
-        if vecnormalize is None:
-            raise InputError(f"{path}: no vecnormalize.pkl beside it, and this run "
-                             "normalises observations (normalize: true)", key="--init")  # fmt: skip
-        saved = load_vecnormalize(vecnormalize)
-        if saved.obs_rms.mean.shape != venv.obs_rms.mean.shape:
-            raise InputError(f"{vecnormalize}: statistics of {saved.obs_rms.mean.shape} "
-                             f"observations, this environment has "
-                             f"{venv.obs_rms.mean.shape}", key="--init")  # fmt: skip
-        venv.obs_rms = saved.obs_rms.copy()
+    if not isinstance(venv, VecNormalize):
+        if vecnormalize is not None:
+            raise InputError(f"{path}: trained on observations normalised by "
+                             f"{vecnormalize}; this run does not normalise (normalize: false)",
+                             key="--init")  # fmt: skip
+        return
+    if vecnormalize is None:
+        raise InputError(f"{path}: no vecnormalize.pkl beside it, and this run normalises "
+                         "observations (normalize: true)", key="--init")  # fmt: skip
+    saved = load_vecnormalize(vecnormalize)
+    if saved.obs_rms.mean.shape != venv.obs_rms.mean.shape:
+        raise InputError(f"{vecnormalize}: statistics of {saved.obs_rms.mean.shape} "
+                         f"observations, this environment has {venv.obs_rms.mean.shape}",
+                         key="--init")  # fmt: skip
+    venv.obs_rms = saved.obs_rms.copy()
 
 
 def _stop_on_sigterm() -> Any:
