@@ -70,7 +70,8 @@ def test_retraining_commands_follow_each_model_recipe():
     from training.retrain_models import commands
 
     plain = commands("ppo-crowd-task", 60, 0)
-    assert len(plain) == 2 and "--init" not in plain[0] and "--hyperparams" not in plain[0]
+    assert len(plain) == 2 and "--init" not in plain[0]
+    assert plain[0][plain[0].index("--hyperparams") + 1 :] == ["learning_rate=1e-4"]
     warm = commands("ppo-mix-srpb", 60, 1)[0]
     hyper = warm[warm.index("--hyperparams") + 1 :]
     assert "pretrain_planner=dwa" in hyper and "torch_threads=1" in hyper

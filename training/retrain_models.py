@@ -57,14 +57,16 @@ class RunSettings:
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
 LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
 #: corridor and fformation: both presets start from the same clone of dwa and train with
-#: the crowd's larger rollout, so that the presets are all that differs; crowd: the srpb
-#: specialist fine-tunes the task run's best checkpoint (from random weights the srpb
-#: preset learns to wait); the generalist starts from the clone of dwa
+#: the crowd's larger rollout, so that the presets are all that differs; crowd: the task
+#: specialist learns with 1e-4 (3e-4 declined after its peak), the srpb specialist
+#: fine-tunes a 3e-4 task run's best checkpoint (from random weights the srpb preset
+#: learns to wait); the generalist starts from the clone of dwa
 RUN_SETTINGS: dict[str, RunSettings] = {
     "ppo-corridor-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-corridor-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-fformation-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-fformation-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
+    "ppo-crowd-task": RunSettings(overrides=("learning_rate=1e-4",)),
     "ppo-crowd-srpb": RunSettings(start=("task", 17.0)),
     "ppo-mix-srpb": RunSettings(overrides=WARM_START),
 }
