@@ -1,10 +1,11 @@
 """A warm start for PPO: behaviour cloning of a classical planner.
 
-PPO from random weights does not find its way through ``crowd`` (0 % success after 1.4M
-steps with either preset) or around the standing pair of ``fformation`` with the
-``srpb`` preset: exploration never reaches the goal often enough to learn from it. A
-policy that starts where a classical planner is, and is then improved by PPO on the
-reward, does. :func:`pretrain` drives ``episodes`` episodes with a planner of
+PPO from random weights with the ``srpb`` preset does not find its way around the
+standing pair of ``fformation`` (0 % success in five runs): exploration never reaches
+the goal often enough to learn from it. A policy that starts where a classical planner
+is, and is then improved by PPO on the reward, does; it also lets both reward presets
+start from the same policy, so that what differs between their models is the reward's
+doing. :func:`pretrain` drives ``episodes`` episodes with a planner of
 :mod:`srpb_gym.planners` (``dwa`` by default, the human-unaware one, so that what the
 ``srpb`` preset changes is the reward's doing), on seeds from :data:`DEMO_SEED` (apart
 from training, periodic-evaluation and test seeds), and:
