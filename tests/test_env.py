@@ -18,6 +18,7 @@ from srpb_gym.cli import main as cli_main
 from srpb_gym.metrics import METRIC_NAMES, evaluate
 from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.registration import CUSTOM_ID, SCENARIO_IDS
+from tests.helpers import same
 
 ENVS = Path(srpb_gym.__file__).resolve().parents[1] / "envs"
 IDS = [*SCENARIO_IDS, CUSTOM_ID]
@@ -44,16 +45,6 @@ def rollout(env: gym.Env, seed: int, steps: int, action_seed: int = 0):
             obs, info = env.reset()
             out.append((obs, 0.0, info))
     return out
-
-
-def same(a, b) -> bool:
-    if isinstance(a, dict):
-        return a.keys() == b.keys() and all(same(a[k], b[k]) for k in a)
-    if isinstance(a, float) and math.isnan(a):
-        return isinstance(b, float) and math.isnan(b)
-    if isinstance(a, np.ndarray):
-        return np.array_equal(a, b, equal_nan=True)
-    return a == b
 
 
 @pytest.mark.parametrize("env_id", IDS)
