@@ -27,7 +27,7 @@ import yaml
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.training.callbacks import eval_score, summarize_results
-from srpb_gym.training.run import eval_env_ids, model_steps
+from srpb_gym.training.run import eval_env_ids
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
@@ -87,14 +87,11 @@ def _wall_time(training: dict[str, Any]) -> str:
 
 
 def _init(init: dict[str, Any] | None) -> dict[str, Any] | None:
-    """The starting model of a run, with the steps it had taken."""
+    """The starting model of a run (as run.json has it), its paths relative."""
     if not init:
         return None
-    steps = init.get("steps")
-    if steps is None:  # a run folder of an earlier version
-        steps = model_steps(init["model"])
-    stats = init.get("vecnormalize")
-    return {**init, "model": _relative(init["model"]), "steps": steps,
+    stats = init["vecnormalize"]
+    return {**init, "model": _relative(init["model"]),
             "vecnormalize": stats and _relative(stats)}  # fmt: skip
 
 

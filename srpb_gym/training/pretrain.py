@@ -5,10 +5,9 @@ standing pair of ``fformation`` (0 % success in five runs): exploration never re
 the goal often enough to learn from it. A policy that starts where a classical planner
 is, and is then improved by PPO on the reward, does; it also lets both reward presets
 start from the same policy, so that what differs between their models is the reward's
-doing. :func:`pretrain` drives ``episodes`` episodes with a planner of
-:mod:`srpb_gym.planners` (``dwa`` by default, the human-unaware one, so that what the
-``srpb`` preset changes is the reward's doing), on seeds from :data:`DEMO_SEED` (apart
-from training, periodic-evaluation and test seeds), and:
+doing (the shipped models clone ``dwa``, the human-unaware planner). :func:`pretrain`
+drives ``episodes`` episodes with a planner of :mod:`srpb_gym.planners`, on seeds from
+:data:`DEMO_SEED` (apart from training, periodic-evaluation and test seeds), and:
 
 1. sets the ``VecNormalize`` statistics (observations, discounted returns) from the
    demonstrations, so that the first PPO update sees the inputs the policy was fitted on;
