@@ -82,4 +82,42 @@ def test_retraining_commands_follow_each_model_recipe():
     assert fine[fine.index("--init") + 1] == f"{first}/best"
     minutes = float(start[start.index("--max-minutes") + 1])
     assert minutes + float(fine[fine.index("--max-minutes") + 1]) == 60
-    assert ship[-1] == "ppo-crowd-srpb"
+    assert ship[ship.index("--name") + 1] == "ppo-crowd-srpb"
+    assert ship[ship.index("--validate") + 1] == "100"
+    assert "--validate" not in commands("ppo-corridor-task", 60, 0)[-1]
+    short = commands("ppo-fformation-srpb", 60, 0)[0]  # its own wall time, within the 60
+    assert short[short.index("--max-minutes") + 1] == "10"
+    assert "pretrain_planner=social-dwa" in short
+    assert commands("ppo-fformation-srpb", 5, 0)[0][short.index("--max-minutes") + 1] == "5"
+
+
+@pytest.mark.parametrize(("best", "final", "chosen"), [
+    ((0.80, 20.0), (0.90, 25.0), "final"),  # higher success wins
+    ((0.90, 25.0), (0.90, 20.0), "final"),  # equal success: lower m_psi wins
+    ((0.90, 20.0), (0.90, 20.0), "best"),  # a tie keeps best/
+    ((0.95, 30.0), (0.90, 10.0), "best"),
+])  # fmt: skip
+def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, final, chosen):
+    from training import ship
+
+    run = tmp_path / "run"
+    (run / "best").mkdir(parents=True)
+    seen = []
+
+    def evaluate(model, env_ids, episodes, seed, out):
+        seen.append((model, episodes, seed))
+        success, psi = best if model.parent.name == "best" else final
+        return {env: {"success": success, "m_psi": psi} for env in env_ids}
+
+    monkeypatch.setattr(ship, "evaluate", evaluate)
+    folder, validation = ship.choose(run, ["SRPB-Crowd-v0"], 100)
+    assert folder == (run / "best" if chosen == "best" else run)
+    assert validation["chosen"] == chosen and validation["seed"] == ship.VALIDATION_SEED
+    assert [s[1:] for s in seen] == [(100, ship.VALIDATION_SEED)] * 2  # never the test seeds
+    assert ship.VALIDATION_SEED != ship.TEST_SEED
+    text = ship._validation(validation)
+    rates = {"best": best[0], "final": final[0]}
+    other = "the final model" if chosen == "best" else "the best periodic evaluation's"
+    assert f"chosen over {other}" in text and "on 100 validation seeds from 1000000" in text
+    against = rates["final" if chosen == "best" else "best"]
+    assert f"mean success {100 * rates[chosen]:.0f} % against {100 * against:.0f} %" in text

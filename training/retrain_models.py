@@ -47,28 +47,44 @@ class RunSettings:
     and random initial weights (the model card has the exact commands).
 
     ``overrides``: ``--hyperparams`` of the run; ``start``: (preset, minutes) of a first
-    run whose best checkpoint the model's own run starts from (``--init``)."""
+    run whose best checkpoint the model's own run starts from (``--init``); ``minutes``:
+    the wall time of the model's own run where it is shorter than ``--max-minutes`` allows
+    (longer training gives another model: the fformation ``task`` model drifts towards the
+    standing pair); ``validate``: ship best/ or the final model, whichever is better on
+    that many validation seeds (``training.ship --validate``), instead of best/."""
 
     seed: int = 0
     overrides: tuple[str, ...] = ()
     start: tuple[str, float] | None = None
+    minutes: float | None = None
+    validate: int = 0
 
 
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
+SOCIAL_WARM_START = ("pretrain_planner=social-dwa", "pretrain_episodes=150")
 LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
-#: corridor and fformation: both presets start from the same clone of dwa and train with
-#: the crowd's larger rollout, so that the presets are all that differs; crowd: the task
+#: corridor and fformation: both presets start from the same clone of a classical planner
+#: and train with the crowd's larger rollout, so that the presets are all that differs
+#: (fformation: a clone of social-dwa, which walks around the pair; from a clone of dwa,
+#: which walks between its members, neither preset left the O-space); crowd: the task
 #: specialist learns with 1e-4 (3e-4 declined after its peak), the srpb specialist
-#: fine-tunes a 3e-4 task run's best checkpoint (from random weights the srpb preset
-#: learns to wait); the generalist starts from the clone of dwa
+#: fine-tunes that run's best checkpoint with 1e-4 (from random weights the srpb preset
+#: learns to wait); the generalist starts from the clone of dwa and learns with 1e-4
+#: (its evaluations peaked after about 15 minutes and declined from 25 minutes on)
 RUN_SETTINGS: dict[str, RunSettings] = {
     "ppo-corridor-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-corridor-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
-    "ppo-fformation-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
-    "ppo-fformation-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
-    "ppo-crowd-task": RunSettings(overrides=("learning_rate=1e-4",)),
-    "ppo-crowd-srpb": RunSettings(start=("task", 17.0)),
-    "ppo-mix-srpb": RunSettings(overrides=WARM_START),
+    "ppo-fformation-task": RunSettings(
+        overrides=(*SOCIAL_WARM_START, *LARGE_ROLLOUT), minutes=10.0, validate=100
+    ),
+    "ppo-fformation-srpb": RunSettings(
+        overrides=(*SOCIAL_WARM_START, *LARGE_ROLLOUT), minutes=10.0, validate=100
+    ),
+    "ppo-crowd-task": RunSettings(overrides=("learning_rate=1e-4",), minutes=28.0),
+    "ppo-crowd-srpb": RunSettings(
+        overrides=("learning_rate=1e-4",), start=("task", 28.0), validate=100
+    ),
+    "ppo-mix-srpb": RunSettings(overrides=("learning_rate=1e-4", *WARM_START), minutes=29.0),
 }
 
 
@@ -86,6 +102,7 @@ def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
         return cmd + (["--hyperparams", *hyperparams] if hyperparams else [])
 
     out: list[list[str]] = []
+    own = max_minutes
     if settings.start is not None:
         start_preset, start_minutes = settings.start
         if start_minutes >= max_minutes:
@@ -93,10 +110,16 @@ def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
                              f"{max_minutes:g} minutes")  # fmt: skip
         first = f"runs/train/{name}-start-{stamp}"
         out.append(train(start_preset, start_minutes, first))
-        out.append([*train(preset, max_minutes - start_minutes, run), "--init", f"{first}/best"])
-    else:
-        out.append(train(preset, max_minutes, run))
-    return [*out, [sys.executable, "-m", "training.ship", run, "--name", name]]
+        own = max_minutes - start_minutes
+    if settings.minutes is not None:
+        own = min(own, settings.minutes)
+    out.append(train(preset, own, run))
+    if settings.start is not None:
+        out[-1] += ["--init", f"{first}/best"]
+    ship = [sys.executable, "-m", "training.ship", run, "--name", name]
+    if settings.validate:
+        ship += ["--validate", str(settings.validate)]
+    return [*out, ship]
 
 
 def main() -> int:

@@ -3,12 +3,13 @@
     python -m training.ship runs/train/ppo-crowd-srpb --name ppo-crowd-srpb
 
 Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--final`` takes
-the final model), evaluates it with the ``srpb-gym eval`` harness on ``--episodes`` unseen
-seeds from ``--seed`` (100 from 10000 by default; every packaged scenario for a model
-trained on SRPB-Mix-v0), and writes ``model.zip``, ``vecnormalize.pkl``,
-``evaluations.csv`` (the periodic evaluations of training), ``card.json`` and ``card.md``
-(environment id and version, reward preset, steps, wall time, machine, seed, command,
-hyperparameters and the test results).
+the final model; ``--validate N`` tests both on N validation seeds, those of the periodic
+evaluations, and takes the better by the periodic evaluations' rule), evaluates it with
+the ``srpb-gym eval`` harness on ``--episodes`` unseen seeds from ``--seed`` (100 from
+10000 by default; every packaged scenario for a model trained on SRPB-Mix-v0), and writes
+``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
+training), ``card.json`` and ``card.md`` (environment id and version, reward preset,
+steps, wall time, machine, seed, command, hyperparameters and the test results).
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ from srpb_gym.training.run import eval_env_ids
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
+#: the first seed of the periodic evaluations of training (never the test seeds)
+VALIDATION_SEED = 1_000_000
 
 
 def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path) -> dict:
@@ -57,7 +60,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| machine | {t['machine']['cpu_count']} cores ({t['machine']['processor']}), "
         f"{t['machine']['system']}, torch threads {t['machine']['torch_threads']} |",
         f"| seed | {card['seed']} |",
-        f"| checkpoint | {card['checkpoint']} |",
+        f"| checkpoint | {card['checkpoint']}{_validation(card.get('validation'))} |",
         f"| command | `{t['command']}` |",
         f"| versions | {', '.join(f'{k} {v}' for k, v in t['versions'].items())} |",
         "", "Hyperparameters: " + ", ".join(f"`{k}={v}`" for k, v in card["hyperparams"].items()),
@@ -75,6 +78,24 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
               f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
               "1000000)."]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _validation(validation: dict[str, Any] | None) -> str:
+    """How the checkpoint was chosen, when it was chosen on validation seeds."""
+    if not validation:
+        return ""
+
+    def success(label: str) -> str:
+        rates = [f["success"] for f in validation["results"][label].values()]
+        return f"{100 * sum(rates) / len(rates):.0f} %"
+
+    other = "final" if validation["chosen"] == "best" else "best"
+    names = {"best": "the best periodic evaluation's checkpoint", "final": "the final model"}
+    return (
+        f", chosen over {names[other]} on {validation['episodes']} validation seeds "
+        f"from {validation['seed']} (mean success {success(validation['chosen'])} "
+        f"against {success(other)})"
+    )
 
 
 def _wall_time(training: dict[str, Any]) -> str:
@@ -137,11 +158,36 @@ def best_step(run: Path) -> int | None:
     return best
 
 
-def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[str, Any]:
-    checkpoint = run if final or not (run / "best" / "model.zip").is_file() else run / "best"
+def choose(run: Path, env_ids: list[str], episodes: int) -> tuple[Path, dict[str, Any]]:
+    """``best/`` or the final model of ``run``, whichever scores higher
+    (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then mean median m_psi)
+    on ``episodes`` seeds from :data:`VALIDATION_SEED`; ``best/`` on a tie. Returns the
+    chosen folder and the validation figures of both."""
+    figures: dict[str, Any] = {}
+    for label, folder in (("best", run / "best"), ("final", run)):
+        work = run / "validation" / label
+        shutil.rmtree(work, ignore_errors=True)
+        figures[label] = evaluate(folder / "model.zip", env_ids, episodes, VALIDATION_SEED, work)
+    better = eval_score(figures["final"].values()) > eval_score(figures["best"].values())
+    return (run if better else run / "best"), {
+        "episodes": episodes,
+        "seed": VALIDATION_SEED,
+        "chosen": "final" if better else "best",
+        "results": figures,
+    }
+
+
+def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
+         validate: int = 0) -> dict[str, Any]:  # fmt: skip
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
     env_ids = eval_env_ids(config["env"])
+    has_best = (run / "best" / "model.zip").is_file()
+    validation = None
+    if validate and not final and has_best:
+        checkpoint, validation = choose(run, env_ids, validate)
+    else:
+        checkpoint = run if final or not has_best else run / "best"
     work = run / "test"
     shutil.rmtree(work, ignore_errors=True)
     results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work)
@@ -158,6 +204,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool) -> dict[st
         "env_kwargs": config.get("env_kwargs", {}), "seed": config["seed"],
         "checkpoint": (f"best periodic evaluation (step {best_step(run)})"
                        if checkpoint != run else "final"),
+        "validation": validation,
         "hyperparams": config["hyperparams"],
         "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
                      "machine": info["machine"], "versions": info["versions"],
@@ -178,8 +225,13 @@ def main() -> int:
     parser.add_argument("--episodes", type=int, default=TEST_EPISODES)
     parser.add_argument("--seed", type=int, default=TEST_SEED)
     parser.add_argument("--final", action="store_true", help="ship the final model, not best/")
+    parser.add_argument("--validate", type=int, default=0, metavar="N",
+                        help="test best/ and the final model on N validation seeds (from "
+                        f"{VALIDATION_SEED}) and ship the better")  # fmt: skip
     args = parser.parse_args()
-    card = ship(args.run, args.name, args.episodes, args.seed, args.final)
+    if args.final and args.validate:
+        parser.error("--final and --validate exclude each other")
+    card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate)
     for env_id, f in card["test"]["results"].items():
         print(f"{args.name} on {env_id}: success {100 * f['success']:.0f}%, "
               f"collision {100 * f['collision']:.0f}%, m_psi {f['m_psi']:.3g}, "
