@@ -57,7 +57,8 @@ def plot(scenario: str, curves: dict[str, dict[str, Any]], out: Path) -> Path:
     for ax, (key, label, _) in zip(axes, PANELS):
         for _, curve in sorted(curves.items()):
             ax.plot(curve["step"], curve[key], marker="o", markersize=3, label=curve["label"])
-        ax.set_xlabel("training steps")
+        ax.set_xlabel("training steps [millions]")
+        ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1e6:g}")
         if key in ("success", "collision"):
             ax.set_ylim(-3, 103)
         ax.set_ylabel(label)
