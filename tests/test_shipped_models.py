@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 
 import gymnasium as gym
 import pytest
@@ -78,6 +79,11 @@ def test_retraining_commands_follow_each_model_recipe():
     start, fine, ship = commands("ppo-crowd-srpb", 60, 0)
     assert start[start.index("--reward") + 1] == "task"
     assert fine[fine.index("--reward") + 1] == "srpb"
+    # the first stage is ppo-crowd-task's own recipe; the fine-tune has its own settings
+    assert (
+        start[start.index("--hyperparams") + 1 :] == plain[0][plain[0].index("--hyperparams") + 1 :]
+    )
+    assert fine[fine.index("--hyperparams") + 1 : fine.index("--init")] == ["learning_rate=5e-5"]
     first = start[start.index("--out") + 1]
     assert fine[fine.index("--init") + 1] == f"{first}/best"
     minutes = float(start[start.index("--max-minutes") + 1])
@@ -114,10 +120,15 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     assert folder == (run / "best" if chosen == "best" else run)
     assert validation["chosen"] == chosen and validation["seed"] == ship.VALIDATION_SEED
     assert [s[1:] for s in seen] == [(100, ship.VALIDATION_SEED)] * 2  # never the test seeds
-    assert ship.VALIDATION_SEED != ship.TEST_SEED
+    from srpb_gym.training.callbacks import EVAL_SEED
+    from srpb_gym.training.pretrain import DEMO_SEED
+
+    # apart from the seeds that chose best/ (and from the demonstrations and test seeds)
+    starts = sorted([ship.VALIDATION_SEED, EVAL_SEED, DEMO_SEED, ship.TEST_SEED])
+    assert all(b - a >= 100_000 for a, b in itertools.pairwise(starts))
     text = ship._validation(validation)
     rates = {"best": best[0], "final": final[0]}
     other = "the final model" if chosen == "best" else "the best periodic evaluation's"
-    assert f"chosen over {other}" in text and "on 100 validation seeds from 1000000" in text
+    assert f"chosen over {other}" in text and "on 100 validation seeds from 3000000" in text
     against = rates["final" if chosen == "best" else "best"]
     assert f"mean success {100 * rates[chosen]:.0f} % against {100 * against:.0f} %" in text

@@ -3,8 +3,8 @@
     python -m training.ship runs/train/ppo-crowd-srpb --name ppo-crowd-srpb
 
 Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--final`` takes
-the final model; ``--validate N`` tests both on N validation seeds, those of the periodic
-evaluations, and takes the better by the periodic evaluations' rule), evaluates it with
+the final model; ``--validate N`` tests both on N validation seeds, none of which chose
+best/, and takes the better by the periodic evaluations' rule), evaluates it with
 the ``srpb-gym eval`` harness on ``--episodes`` unseen seeds from ``--seed`` (100 from
 10000 by default; every packaged scenario for a model trained on SRPB-Mix-v0), and writes
 ``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
@@ -32,8 +32,10 @@ from srpb_gym.training.run import eval_env_ids
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
-#: the first seed of the periodic evaluations of training (never the test seeds)
-VALIDATION_SEED = 1_000_000
+#: the first validation seed: apart from the periodic evaluations' seeds, which chose
+#: best/ (from 1,000,000), the demonstrations of a warm start (from 2,000,000) and the
+#: test seeds (from 10,000)
+VALIDATION_SEED = 3_000_000
 
 
 def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path) -> dict:
