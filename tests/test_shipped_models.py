@@ -130,5 +130,52 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     rates = {"best": best[0], "final": final[0]}
     other = "the final model" if chosen == "best" else "the best periodic evaluation's"
     assert f"chosen over {other}" in text and "on 100 validation seeds from 3000000" in text
-    against = rates["final" if chosen == "best" else "best"]
-    assert f"mean success {100 * rates[chosen]:.0f} % against {100 * against:.0f} %" in text
+    psis = {"best": best[1], "final": final[1]}
+    loser = "final" if chosen == "best" else "best"
+    assert (f"mean success {100 * rates[chosen]:.0f} % against {100 * rates[loser]:.0f} %, "
+            f"median m_psi {psis[chosen]:.3g} % against {psis[loser]:.3g} %") in text  # fmt: skip
+
+
+def _fake_run(run, best: bool, interrupted: bool = False):
+    """A run folder as srpb-gym train leaves it, with placeholder model files."""
+    (run / "best").mkdir(parents=True) if best else run.mkdir(parents=True)
+    for folder in (run, run / "best") if best else (run,):
+        (folder / "model.zip").write_text(f"model in {folder.name}")
+        (folder / "vecnormalize.pkl").write_text("statistics")
+    (run / "config.yaml").write_text(
+        "env: SRPB-Corridor-v0\nreward: srpb\nseed: 0\nhyperparams: {eval_episodes: 20}\n"
+    )
+    machine = {"cpu_count": 2, "processor": "x", "system": "y", "torch_threads": 1}
+    (run / "run.json").write_text(__import__("json").dumps({
+        "steps": 1000, "wall_time_s": 60.0, "machine": machine, "versions": {"srpb-gym": "0"},
+        "interrupted": interrupted}))  # fmt: skip
+    (run / "command.txt").write_text("srpb-gym train --env SRPB-Corridor-v0\n")
+
+
+def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
+    from training import ship
+
+    def evaluate(model, env_ids, episodes, seed, out):
+        good = model.parent.name == "run"  # the final model is the better one here
+        return {env: {"success": 1.0 if good else 0.5, "collision": 0.0, "timeout": 0.0,
+                      "m_psi": 10.0, "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0}
+                for env in env_ids}  # fmt: skip
+
+    monkeypatch.setattr(ship, "evaluate", evaluate)
+    monkeypatch.setattr(ship, "MODELS_DIR", tmp_path / "models")
+    _fake_run(tmp_path / "run", best=True, interrupted=True)
+    card = ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, False, validate=50)
+    shipped = tmp_path / "models" / "ppo-corridor-srpb"
+    assert (shipped / "model.zip").read_text() == "model in run"  # the final model
+    assert card["checkpoint"] == "final" and card["validation"]["chosen"] == "final"
+    text = (shipped / "card.md").read_text()
+    assert "final, chosen over the best periodic evaluation's checkpoint on 50" in text
+    assert "stopped by hand" in text
+    with pytest.raises(ValueError, match="exclude each other"):
+        ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, True, validate=50)
+    # no best/: the final model, said so, and no validation
+    _fake_run(tmp_path / "plain", best=False)
+    card = ship.ship(tmp_path / "plain", "ppo-corridor-srpb", 100, 10_000, False, validate=50)
+    assert card["checkpoint"] == "final" and card["validation"] is None
+    assert "no best/" in capsys.readouterr().err
+    assert "stopped by hand" not in (shipped / "card.md").read_text()

@@ -5,16 +5,19 @@
     python -m training.retrain_models --dry-run       # print the commands only
 
 Each model: ``srpb-gym train`` with its env id, reward preset, seed 0 and the steps of
-configs/train/ppo.yaml, stopped after at most ``--max-minutes`` (60) of wall time, into
-``runs/train/<name>-<time>``; then ``python -m training.ship`` tests its best checkpoint on 100
-unseen seeds (from 10000) and writes ``srpb_gym/models/<name>/`` with its model card.
-On a 2-core machine two runs side by side (``--jobs 2``, one torch thread each) finish
-sooner than one after the other.
+configs/train/ppo.yaml, stopped after at most ``--max-minutes`` (60) of wall time or the
+model's own shorter time (:attr:`RunSettings.minutes`), into ``runs/train/<name>-<time>``;
+then ``python -m training.ship`` tests its best checkpoint (or, with
+:attr:`RunSettings.validate`, the better of best/ and the final model on validation seeds)
+on 100 unseen seeds (from 10000) and writes ``srpb_gym/models/<name>/`` with its model
+card. On a 2-core machine two runs side by side (``--jobs 2``, one torch thread each)
+finish sooner than one after the other.
 
 Some models start from something else than random weights, as their cards say: a warm
-start from ``dwa``'s demonstrations (``pretrain_planner``), or the best checkpoint of a
-shorter ``task`` run that the ``srpb`` run then fine-tunes (``--init``); the two stages
-together stay within ``--max-minutes``.
+start from a classical planner's demonstrations (``pretrain_planner``: ``dwa`` or
+``social-dwa``), or the best checkpoint of another model's recipe, run first, that this
+model's run then fine-tunes (``--init``: ``ppo-crowd-srpb`` fine-tunes a new
+``ppo-crowd-task``); the two stages together stay within ``--max-minutes``.
 """
 
 from __future__ import annotations
@@ -72,7 +75,7 @@ LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
 #: fine-tunes it with 5e-5 (better than 1e-4 on the validation seeds, 87 % against 86 %;
 #: from random weights the srpb preset learns to wait); the generalist starts from the
 #: clone of dwa and learns with 1e-4 (its evaluations peaked after about 15 minutes and
-#: declined from 25 minutes on)
+#: declined after about 22)
 RUN_SETTINGS: dict[str, RunSettings] = {
     "ppo-corridor-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-corridor-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
@@ -99,7 +102,8 @@ def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
     own = max_minutes
     if settings.start is not None:
         first = f"runs/train/{name}-start-{stamp}"
-        first_minutes = min(max_minutes, RUN_SETTINGS[settings.start].minutes or max_minutes)
+        start = RUN_SETTINGS.get(settings.start, RunSettings())
+        first_minutes = min(max_minutes, start.minutes or max_minutes)
         if first_minutes >= max_minutes:
             raise ValueError(f"{name}: its first stage ({settings.start}) alone takes "
                              f"{first_minutes:g} of the {max_minutes:g} minutes")  # fmt: skip
@@ -139,9 +143,13 @@ def main() -> int:
         parser.error(f"unknown model {unknown[0]!r}; choose from {', '.join(MODELS)}")
     names = args.names or [n for n in MODELS if n in model_names()]
     threads = 1 if args.jobs > 1 else 0
+    try:
+        plans = {name: commands(name, args.max_minutes, threads) for name in names}
+    except ValueError as exc:
+        parser.error(f"{exc}; raise --max-minutes")
 
     def one(name: str) -> int:
-        for cmd in commands(name, args.max_minutes, threads):
+        for cmd in plans[name]:
             print("+ " + shlex.join(cmd), flush=True)
             if not args.dry_run and subprocess.run(cmd, check=False).returncode != 0:
                 return 1

@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import math
 import os
 import shutil
 import sys
@@ -87,26 +88,29 @@ def _validation(validation: dict[str, Any] | None) -> str:
     if not validation:
         return ""
 
-    def success(label: str) -> str:
-        rates = [f["success"] for f in validation["results"][label].values()]
-        return f"{100 * sum(rates) / len(rates):.0f} %"
+    def mean(label: str, key: str) -> float:
+        values = [f[key] for f in validation["results"][label].values() if math.isfinite(f[key])]
+        return sum(values) / len(values) if values else math.nan
 
-    other = "final" if validation["chosen"] == "best" else "best"
+    chosen = validation["chosen"]
+    other = "final" if chosen == "best" else "best"
     names = {"best": "the best periodic evaluation's checkpoint", "final": "the final model"}
     return (
         f", chosen over {names[other]} on {validation['episodes']} validation seeds "
-        f"from {validation['seed']} (mean success {success(validation['chosen'])} "
-        f"against {success(other)})"
+        f"from {validation['seed']} (mean success {100 * mean(chosen, 'success'):.0f} % "
+        f"against {100 * mean(other, 'success'):.0f} %, median m_psi "
+        f"{mean(chosen, 'm_psi'):.3g} % against {mean(other, 'm_psi'):.3g} %)"
     )
 
 
 def _wall_time(training: dict[str, Any]) -> str:
     ppo = training["wall_time_s"] / 60
     warm = training.get("warm_start")
+    stopped = ", stopped by hand (Ctrl-C or SIGTERM)" if training.get("interrupted") else ""
     if not warm:
-        return f"{ppo:.1f} min"
+        return f"{ppo:.1f} min{stopped}"
     pre = warm["wall_time_s"] / 60
-    return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO)"
+    return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO{stopped})"
 
 
 def _init(init: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -181,12 +185,17 @@ def choose(run: Path, env_ids: list[str], episodes: int) -> tuple[Path, dict[str
 
 def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
          validate: int = 0) -> dict[str, Any]:  # fmt: skip
+    if final and validate:
+        raise ValueError("final and validate exclude each other")
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
     env_ids = eval_env_ids(config["env"])
     has_best = (run / "best" / "model.zip").is_file()
+    if not has_best and not final:
+        print(f"{run}: no best/ (no periodic evaluation): shipping the final model"
+              + (" without validation" if validate else ""), file=sys.stderr)  # fmt: skip
     validation = None
-    if validate and not final and has_best:
+    if validate and has_best:
         checkpoint, validation = choose(run, env_ids, validate)
     else:
         checkpoint = run if final or not has_best else run / "best"
@@ -212,6 +221,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
                      "machine": info["machine"], "versions": info["versions"],
                      "command": (run / "command.txt").read_text(encoding="utf-8").strip(),
                      "time_limit_reached": info.get("time_limit_reached", False),
+                     "interrupted": info.get("interrupted", False),
                      "warm_start": info.get("warm_start"), "init": _init(info.get("init"))},
         "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results},
     }  # fmt: skip
