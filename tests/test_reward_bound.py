@@ -93,7 +93,7 @@ def test_per_step_values_stay_within_their_bounds(env_id: str) -> None:
 
 
 def test_gameable_weights_warn_once() -> None:
-    env = gym.make("SRPB-Crowd-v0", reward_weights={"psi": -4.0})
+    env = gym.make("SRPB-Crowd-v0", reward_weights={"psi": -20.0})
     with pytest.warns(RewardGameableWarning, match="collision penalty"):
         env.reset(seed=0)
     with warnings.catch_warnings():
@@ -113,7 +113,7 @@ def test_packaged_presets_do_not_warn(preset: str) -> None:
 
 
 def test_continuing_collisions_are_not_checked() -> None:
-    env = gym.make("SRPB-Crowd-v0", reward_weights={"psi": -4.0}, collision="continue")
+    env = gym.make("SRPB-Crowd-v0", reward_weights={"psi": -20.0}, collision="continue")
     with warnings.catch_warnings():
         warnings.simplefilter("error", RewardGameableWarning)
         env.reset(seed=0)
