@@ -75,8 +75,8 @@ LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
 #: its peak), the srpb specialist fine-tunes it with 5e-5 (with the earlier weights better
 #: than 1e-4 on the validation seeds, 87 % against 86 %; from random weights the srpb
 #: preset learns to wait); the generalist starts from the clone of dwa and learns with
-#: 5e-5 (with 1e-4 its evaluations peaked after about 15 minutes and declined after about
-#: 22; with 5e-5 they rose for 55 minutes)
+#: 5e-5 (with the earlier srpb weights: with 1e-4 its evaluations peaked after about 15
+#: minutes and declined after about 22; with 5e-5 they rose for 55 minutes)
 RUN_SETTINGS: dict[str, RunSettings] = {
     "ppo-corridor-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
     "ppo-corridor-srpb": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),
