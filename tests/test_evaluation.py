@@ -236,9 +236,11 @@ def test_interrupt_keeps_finished_episodes(tmp_path, monkeypatch, capsys):
 
 
 def test_sigint_stops_a_parallel_run(tmp_path):
+    # far more episodes than a loaded machine finishes before the signal: with 400, a run
+    # could end before this process, starved of CPU, saw its first row and sent SIGINT
     out = tmp_path / "sig"
     cmd = [sys.executable, "-m", "srpb_gym", "eval", "--env", ENV, "--planner", "go-to-goal",
-           "--episodes", "400", "--workers", "2", "--out", str(out)]  # fmt: skip
+           "--episodes", "5000", "--workers", "2", "--out", str(out)]  # fmt: skip
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and proc.poll() is None:
@@ -250,7 +252,7 @@ def test_sigint_stops_a_parallel_run(tmp_path):
     assert proc.returncode == 130, err
     assert "interrupted:" in err.strip().splitlines()[-1]
     rows = _rows(out)
-    assert 1 <= len(rows) < 400
+    assert 1 <= len(rows) < 5000
     folder = out / "episodes" / ENV / "go-to-goal"
     recorded = sorted(int(p.name[len("corridor_seed") : -4]) for p in folder.glob("*[0-9].npz"))
     assert recorded == sorted(int(r["seed"]) for r in rows)
