@@ -147,11 +147,10 @@ class SRPBNavEnv(gym.Env):
       (earlier steps used to carry placeholder 0.0 values) and at every truncation,
       ``TimeLimit``'s included; ``robot_circumradius`` and ``robot_max_speed`` come from
       the robot's settings (the same values for the default robot). Before the first
-      release the reward presets were re-weighted so that no termination pays (shaping
-      bounded by the collision penalty: 110 for ``srpb``, whose social weights are five
-      times those of the first bounded version, 25 for ``task``) and the fformation,
-      crowd and doorway scenarios were reworked so that every SRPB metric is exercised:
-      returns and metrics of earlier v0 builds are not comparable with these.
+      release the reward presets were re-weighted so that no termination pays (collision
+      -25, shaping bounded) and the fformation, crowd and doorway scenarios were reworked
+      so that every SRPB metric is exercised: returns and metrics of earlier v0 builds
+      are not comparable with these.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

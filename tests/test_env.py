@@ -341,7 +341,7 @@ def test_collision_modes():
             _, _reward, terminated, _, info = env.step(np.array([1.0, 0.0], dtype=np.float32))
             hit |= info["collision"]
             if info["collision"]:
-                assert info["reward_collision"] == -110.0 and not info["is_success"]
+                assert info["reward_collision"] == -25.0 and not info["is_success"]
             if terminated:
                 ended = True
                 break

@@ -70,12 +70,11 @@ LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
 #: corridor and fformation: both presets start from the same clone of a classical planner
 #: and train with the crowd's larger rollout, so that the presets are all that differs
 #: (fformation: a clone of social-dwa, which walks around the pair; from a clone of dwa,
-#: which walks between its members, neither preset left the O-space with the earlier,
-#: weaker srpb weights); crowd: the task specialist learns with 1e-4 (3e-4 declined after
-#: its peak), the srpb specialist fine-tunes it with 5e-5 (with the earlier weights better
-#: than 1e-4 on the validation seeds, 87 % against 86 %; from random weights the srpb
-#: preset learns to wait); the generalist starts from the clone of dwa and learns with
-#: 5e-5 (with the earlier srpb weights: with 1e-4 its evaluations peaked after about 15
+#: which walks between its members, neither preset left the O-space); crowd: the task
+#: specialist learns with 1e-4 (3e-4 declined after its peak), the srpb specialist
+#: fine-tunes it with 5e-5 (better than 1e-4 on the validation seeds, 87 % against 86 %;
+#: from random weights the srpb preset learns to wait); the generalist starts from the
+#: clone of dwa and learns with 5e-5 (with 1e-4 its evaluations peaked after about 15
 #: minutes and declined after about 22; with 5e-5 they rose for 55 minutes)
 RUN_SETTINGS: dict[str, RunSettings] = {
     "ppo-corridor-task": RunSettings(overrides=(*WARM_START, *LARGE_ROLLOUT)),

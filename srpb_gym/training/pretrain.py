@@ -1,16 +1,15 @@
 """A warm start for PPO: behaviour cloning of a classical planner.
 
-PPO from random weights with the ``srpb`` preset (its first bounded weights) did not find
-its way around the standing pair of ``fformation`` (0 % success in five runs):
-exploration never reaches the goal often enough to learn from it. A policy that starts
-where a classical planner is, and is then improved by PPO on the reward, does; it also
-lets both reward presets start from the same policy, so that what differs between their
-models is the reward's doing (the shipped corridor models and the generalist clone
-``dwa``; the fformation ones clone ``social-dwa``, whose route around the pair the
-``srpb`` preset keeps and the ``task`` preset wears down towards the pair).
-:func:`pretrain` drives ``episodes`` episodes with a planner of :mod:`srpb_gym.planners`,
-on seeds from :data:`DEMO_SEED` (apart from training, periodic-evaluation and test
-seeds), and:
+PPO from random weights with the ``srpb`` preset does not find its way around the
+standing pair of ``fformation`` (0 % success in five runs): exploration never reaches
+the goal often enough to learn from it. A policy that starts where a classical planner
+is, and is then improved by PPO on the reward, does; it also lets both reward presets
+start from the same policy, so that what differs between their models is the reward's
+doing (the shipped corridor models and the generalist clone ``dwa``; the fformation ones
+clone ``social-dwa``, whose route around the pair the ``srpb`` preset keeps and the
+``task`` preset wears down towards the pair). :func:`pretrain` drives ``episodes``
+episodes with a planner of :mod:`srpb_gym.planners`, on seeds from :data:`DEMO_SEED`
+(apart from training, periodic-evaluation and test seeds), and:
 
 1. sets the ``VecNormalize`` statistics (observations, discounted returns) from the
    demonstrations, so that the first PPO update sees the inputs the policy was fitted on;
