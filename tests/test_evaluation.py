@@ -235,13 +235,19 @@ def test_interrupt_keeps_finished_episodes(tmp_path, monkeypatch, capsys):
     assert (out / f"table_{ENV}.md").is_file()
 
 
+def _sigint_default() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_sigint_stops_a_parallel_run(tmp_path):
-    # far more episodes than a loaded machine finishes before the signal: with 400, a run
-    # could end before this process, starved of CPU, saw its first row and sent SIGINT
+    # far more episodes than a loaded machine finishes before the signal. The run starts
+    # with Ctrl-C at its default: a test run started in the background of a shell ignores
+    # SIGINT, its children inherit that, and Python then installs no handler for it
     out = tmp_path / "sig"
     cmd = [sys.executable, "-m", "srpb_gym", "eval", "--env", ENV, "--planner", "go-to-goal",
            "--episodes", "5000", "--workers", "2", "--out", str(out)]  # fmt: skip
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_sigint_default)  # fmt: skip
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and proc.poll() is None:
         if (out / "episodes.csv").is_file() and len(_rows(out)) >= 1:
