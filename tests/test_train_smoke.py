@@ -16,6 +16,8 @@ from srpb_gym.training import callbacks
 from srpb_gym.training.config import resolve
 from srpb_gym.training.run import train
 
+MIX_SCENARIOS = ("Corridor", "FFormation", "Crossing", "Crowd", "Doorway")
+
 SMALL = ["n_steps=128", "batch_size=64", "n_epochs=2", "net_arch=[32, 32]", "eval_episodes=1"]
 
 
@@ -231,3 +233,23 @@ def test_init_starts_from_a_trained_model(tmp_path):
               init=first.out)  # fmt: skip
     with pytest.raises(InputError, match="no model file"):
         resolve_init(str(tmp_path / "nothing"))
+
+
+def test_mix_draw_weights_train_with_periodic_evaluation(tmp_path, capsys):
+    """`weights` of SRPB-Mix-v0 change only how often each scenario is drawn in training:
+    the periodic evaluation runs the registered mixture, as the test seeds do."""
+    out = tmp_path / "run"
+    rc = main(["train", "--env", "SRPB-Mix-v0", "--reward", "task", "--steps", "256",
+               "--hyperparams", *SMALL, "n_envs=1", "n_steps=256", "eval_freq=256",
+               "--env-kwargs", "weights=[0, 1, 0, 0, 0]", "--out", str(out),
+               "--no-progress"])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+    config = yaml.safe_load((out / "config.yaml").read_text())
+    assert config["env_kwargs"]["weights"] == [0, 1, 0, 0, 0]
+    with open(out / "evaluations.csv", newline="") as f:
+        envs = [r["env"] for r in csv.DictReader(f)]
+    assert envs == [f"SRPB-{name}-v0" for name in MIX_SCENARIOS]  # each, weight 0 or not
+    other = ["train", "--env", "SRPB-Mix-v0", "--env-kwargs", "weights=[0, 1, 0, 0, 0]",
+             "crowd={robot_reaction: 0.0}", "--out", str(tmp_path / "other")]  # fmt: skip
+    assert main(other) == 2
+    assert "as registered, not with crowd" in capsys.readouterr().err

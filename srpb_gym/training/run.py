@@ -56,6 +56,10 @@ from srpb_gym.training.config import TrainConfig
 MIX_ID = "SRPB-Mix-v0"
 #: env kwargs that change only the reward, which evaluation does not use
 REWARD_ONLY_KWARGS = frozenset({"reward_weights"})
+#: kwargs of SRPB-Mix-v0 that change only how often each scenario is drawn in training:
+#: periodic evaluation runs the registered mixture, as the test seeds do (each scenario
+#: as often as the others)
+MIX_DRAW_KWARGS = frozenset({"weights"})
 
 
 @dataclass
@@ -169,7 +173,8 @@ def train(
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
-    changing = sorted(set(env_kwargs) - REWARD_ONLY_KWARGS)
+    neutral = REWARD_ONLY_KWARGS | (MIX_DRAW_KWARGS if env_id == MIX_ID else frozenset())
+    changing = sorted(set(env_kwargs) - neutral)
     if changing and config.eval_freq > 0:
         raise InputError(f"periodic evaluation runs the environment as registered, not with "
                          f"{', '.join(changing)}: set eval_freq=0 (--hyperparams) or leave "
