@@ -256,13 +256,33 @@ def _run_here(config: EvalConfig, tasks: Sequence[Task], finish: Callable) -> No
 
 
 def _run_pool(config: EvalConfig, tasks: Sequence[Task], finish: Callable) -> None:
+    """Run ``tasks`` in worker processes, at most two per worker queued at a time. Ctrl-C
+    sets a flag that the loop checks between waits: raised as an exception inside
+    ``concurrent.futures.wait``, it could leave the locks of the futures held, and the
+    pool's own thread waiting on them forever."""
     workers = min(config.workers, len(tasks))
     with _sigint_ignored():
         pool = ProcessPoolExecutor(workers, _context(), _init_worker, (config,))
-        pending: dict[Future, Task] = {pool.submit(_run_in_worker, t): t for t in tasks}
+    todo = iter(tasks)
+    pending: dict[Future, Task] = {}
+
+    def refill() -> None:
+        while len(pending) < _QUEUED_PER_WORKER * workers:
+            task = next(todo, None)
+            if task is None:
+                return
+            pending[pool.submit(_run_in_worker, task)] = task
+
     try:
-        for future, task in _completed(pending):
-            finish(task, future.result())
+        with _sigint_as_flag() as interrupted:
+            refill()
+            while pending:
+                finished, _ = wait(list(pending), timeout=_POLL_S, return_when=FIRST_COMPLETED)
+                for future in finished:
+                    finish(pending.pop(future), future.result())
+                if interrupted.is_set():
+                    raise KeyboardInterrupt
+                refill()
     except BaseException:
         _stop_pool(pool)
         for future, task in pending.items():  # episodes whose result arrived meanwhile
@@ -270,6 +290,32 @@ def _run_pool(config: EvalConfig, tasks: Sequence[Task], finish: Callable) -> No
                 finish(task, future.result())
         raise
     pool.shutdown(wait=True)
+
+
+#: tasks queued per worker process (one running, one waiting), and how often the loop
+#: of :func:`_run_pool` looks for Ctrl-C while it waits for results [s]
+_QUEUED_PER_WORKER = 2
+_POLL_S = 0.1
+
+
+@contextmanager
+def _sigint_as_flag() -> Iterator[threading.Event]:
+    """Ctrl-C sets the event instead of raising ``KeyboardInterrupt`` wherever the main
+    thread is. Outside the main thread, or where SIGINT is ignored (``nohup``), nothing
+    changes."""
+    flag = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is signal.SIG_IGN:
+        yield flag
+        return
+    signal.signal(signal.SIGINT, lambda signum, frame: flag.set())
+    try:
+        yield flag
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
 
 
 @contextmanager
@@ -284,13 +330,6 @@ def _sigint_ignored() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
-
-
-def _completed(pending: dict[Future, Task]) -> Iterator[tuple[Future, Task]]:
-    while pending:
-        finished, _ = wait(list(pending), return_when=FIRST_COMPLETED)
-        for future in finished:
-            yield future, pending.pop(future)
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:
