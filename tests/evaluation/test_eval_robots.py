@@ -108,7 +108,11 @@ def test_per_robot_and_pooled_statistics(run):
             values = np.array([float(r[name]) for r in mine])
             values = values[np.isfinite(values)]
             median = entry["metrics"][name]["median"]
-            assert (median is None) if values.size == 0 else median == np.median(values), name
+            # np.percentile (the summary's) and np.median may differ in the last bit where
+            # the median falls between two values: m_cef and m_cre are measured times
+            same = (median is None) if values.size == 0 else np.isclose(
+                median, np.median(values), rtol=1e-12, atol=0.0)  # fmt: skip
+            assert same, (name, median, np.median(values))
     assert entries["dwa/pooled"]["robot"] == "pooled" and entries["dwa/robot_1"]["robot"] == 1
 
 
