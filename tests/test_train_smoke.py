@@ -12,11 +12,10 @@ import yaml
 pytest.importorskip("stable_baselines3")
 
 from srpb_gym.cli import main
+from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.training import callbacks
 from srpb_gym.training.config import resolve
 from srpb_gym.training.run import train
-
-MIX_SCENARIOS = ("Corridor", "FFormation", "Crossing", "Crowd", "Doorway")
 
 SMALL = ["n_steps=128", "batch_size=64", "n_epochs=2", "net_arch=[32, 32]", "eval_episodes=1"]
 
@@ -248,7 +247,7 @@ def test_mix_draw_weights_train_with_periodic_evaluation(tmp_path, capsys):
     assert config["env_kwargs"]["weights"] == [0, 1, 0, 0, 0]
     with open(out / "evaluations.csv", newline="") as f:
         envs = [r["env"] for r in csv.DictReader(f)]
-    assert envs == [f"SRPB-{name}-v0" for name in MIX_SCENARIOS]  # each, weight 0 or not
+    assert envs == list(SCENARIO_IDS)  # each scenario, weight 0 or not
     other = ["train", "--env", "SRPB-Mix-v0", "--env-kwargs", "weights=[0, 1, 0, 0, 0]",
              "crowd={robot_reaction: 0.0}", "--out", str(tmp_path / "other")]  # fmt: skip
     assert main(other) == 2

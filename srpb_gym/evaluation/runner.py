@@ -21,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from dataclasses import dataclass
 from typing import Any
 
@@ -299,37 +299,35 @@ _POLL_S = 0.1
 
 
 @contextmanager
-def _sigint_as_flag() -> Iterator[threading.Event]:
-    """Ctrl-C sets the event instead of raising ``KeyboardInterrupt`` wherever the main
-    thread is. Outside the main thread, or where SIGINT is ignored (``nohup``), nothing
-    changes."""
-    flag = threading.Event()
+def _sigint(handler: Any) -> Iterator[None]:
+    """SIGINT handled by ``handler`` for a moment, then as before; outside the main thread,
+    which alone receives signals, nothing changes."""
     if threading.current_thread() is not threading.main_thread():
-        yield flag
+        yield
         return
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is signal.SIG_IGN:
-        yield flag
-        return
-    signal.signal(signal.SIGINT, lambda signum, frame: flag.set())
+    previous = signal.signal(signal.SIGINT, handler)
     try:
-        yield flag
+        yield
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
 
 
 @contextmanager
-def _sigint_ignored() -> Iterator[None]:
+def _sigint_as_flag() -> Iterator[threading.Event]:
+    """Ctrl-C sets the event instead of raising ``KeyboardInterrupt`` wherever the main
+    thread is. Where SIGINT is ignored (``nohup``) it stays ignored."""
+    flag = threading.Event()
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        yield flag
+        return
+    with _sigint(lambda signum, frame: flag.set()):
+        yield flag
+
+
+def _sigint_ignored() -> AbstractContextManager[None]:
     """Ignore Ctrl-C for a moment: worker processes started meanwhile inherit it and leave
     the interruption to this process."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
+    return _sigint(signal.SIG_IGN)
 
 
 def _stop_pool(pool: ProcessPoolExecutor) -> None:

@@ -41,7 +41,7 @@ import srpb_gym  # noqa: F401  (registers the ids)
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
-from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.registration import MIX_ID, SCENARIO_IDS
 from srpb_gym.reward import PRESET_GAMMA, TERMS, preset_names, shaping_bound
 from srpb_gym.training.callbacks import (
     EpisodeStatsCallback,
@@ -53,7 +53,6 @@ from srpb_gym.training.callbacks import (
 )
 from srpb_gym.training.config import TrainConfig
 
-MIX_ID = "SRPB-Mix-v0"
 #: env kwargs that change only the reward, which evaluation does not use
 REWARD_ONLY_KWARGS = frozenset({"reward_weights"})
 #: kwargs of SRPB-Mix-v0 that change only how often each scenario is drawn in training:
