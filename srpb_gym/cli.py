@@ -8,7 +8,7 @@ Usage::
                   [--planner-param NAME.FIELD=VALUE ...] [--policy PATH ...]
                   [--policy-algo ALGO] [--vecnormalize FILE|none] [--episodes N] [--seed S]
                   [--out DIR] [--resume] [--workers N] [--warmup STEPS] [--video [K]]
-                  [--robots N] [--semantics S] [--preset P]
+                  [--robots N] [--semantics S] [--preset P] [--env-kwargs KEY=VALUE ...]
     srpb-gym compare DIR [DIR ...] [--out DIR] [--separate]
     srpb-gym train --env ID [--reward PRESET] [--seed S] [--steps N]
                    [--hyperparams KEY=VALUE ...] [--env-kwargs KEY=VALUE ...] [--config FILE]
@@ -318,6 +318,10 @@ def add_eval_command(subparsers: Any) -> None:
                    help="metric semantics (default: paper)")  # fmt: skip
     p.add_argument("--preset", choices=tuple(PRESETS), default="paper",
                    help="metric parameter preset (default: paper)")  # fmt: skip
+    p.add_argument("--env-kwargs", **many, default=[], metavar="KEY=VALUE",
+                   help="keyword arguments of every environment, values in YAML, e.g. "
+                        "'crowd={robot_reaction: 0.0}' or the observation a policy was "
+                        "trained with (as srpb-gym train --env-kwargs)")  # fmt: skip
     p.set_defaults(func=run_eval)
 
 
@@ -327,6 +331,7 @@ def _stderr(line: str) -> None:
 
 def run_eval(args: argparse.Namespace) -> int:
     """Run the evaluation described by ``args``; 130 when interrupted."""
+    from srpb_gym.config import parse_overrides
     from srpb_gym.evaluation import resolve_config, run_evaluation
     from srpb_gym.planners.config import planner_settings
 
@@ -344,7 +349,7 @@ def run_eval(args: argparse.Namespace) -> int:
         workers=args.workers, video=args.video, semantics=args.semantics, preset=args.preset,
         planner_settings=planner_settings(args.planner_config, args.planner_param),
         argv=getattr(args, "argv", ()), warmup=args.warmup, resume=args.resume, log=_stderr,
-        robots=args.robots,
+        robots=args.robots, env_kwargs=parse_overrides(args.env_kwargs, "--env-kwargs"),
     )  # fmt: skip
     try:
         outcome = run_evaluation(config, log=_stderr)

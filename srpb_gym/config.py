@@ -16,7 +16,7 @@ import math
 import numbers
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar
 
 import numpy as np
@@ -172,3 +172,22 @@ def _convert(hint: Any, value: Any, dotted: str, file: str | None, infinite: boo
             raise errors[0]
         raise InputError(f"value {_short(value)} does not fit {hint}", file, key=dotted)
     return value
+
+
+def parse_overrides(items: Sequence[str], option: str = "--hyperparams") -> dict[str, Any]:
+    """``["n_steps=1024", "net_arch=[64, 64]"]`` -> ``{"n_steps": 1024, "net_arch": [64, 64]}``
+    (values read as YAML by the safe reader: plain data only)."""
+    from srpb_gym.scenarios.yaml_io import read_yaml
+
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        key = key.strip()
+        if not sep or not key:
+            raise InputError(f"expected KEY=VALUE, got {item!r}", key=option)
+        try:
+            value, _ = read_yaml(text, f"{option} {key}")
+        except InputError as exc:
+            raise InputError(exc.message, key=f"{option}: {key}") from None
+        out[key] = value
+    return out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import re
 
 
 class InputError(ValueError):
@@ -41,3 +42,20 @@ class InputError(ValueError):
 
     def __reduce__(self):  # keep the attributes when pickled (e.g. across processes)
         return (type(self), (self.message, self.path, self.line, self.key))
+
+
+_UNEXPECTED = re.compile(r"unexpected keyword argument '([^']+)'")
+
+
+def env_kwargs_error(env_id: str, exc: Exception, option: str = "--env-kwargs") -> InputError:
+    """The :class:`InputError` for ``gym.make(env_id, **kwargs)`` failing with ``exc``: an
+    unknown keyword is named (not Gymnasium's message with every keyword argument); an
+    :class:`InputError` keeps its location, under ``option``."""
+    if isinstance(exc, InputError):
+        where = f" ({exc.path})" if exc.path else ""
+        key = f"{option}: {exc.key}" if exc.key else option
+        return InputError(f"{env_id}: {exc.message}{where}", key=key)
+    match = _UNEXPECTED.search(str(exc))
+    if isinstance(exc, TypeError) and match:
+        return InputError(f"{env_id} takes no such argument", key=f"{option}: {match[1]}")
+    return InputError(f"{env_id}: {exc}", key=option)

@@ -112,7 +112,7 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     (run / "best").mkdir(parents=True)
     seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out):
+    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
         seen.append((model, episodes, seed))
         success, psi = best if model.parent.name == "best" else final
         return {env: {"success": success, "m_psi": psi} for env in env_ids}
@@ -138,6 +138,31 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
             f"median m_psi {psis[chosen]:.3g} % against {psis[loser]:.3g} %") in text  # fmt: skip
 
 
+def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monkeypatch):
+    from training import ship
+
+    run = tmp_path / "run"
+    (run / "best").mkdir(parents=True)
+    for folder in (run, run / "best"):
+        (folder / "model.zip").write_bytes(b"the same weights")
+        (folder / "vecnormalize.pkl").write_bytes(b"the same statistics")
+    seen = []
+
+    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
+        seen.append(model)
+        return {env: {"success": 0.9, "m_psi": 10.0} for env in env_ids}
+
+    monkeypatch.setattr(ship, "evaluate", evaluate)
+    folder, validation = ship.choose(run, ["SRPB-Crowd-v0"], 100)
+    assert seen == [run / "best" / "model.zip"]
+    results = validation["results"]
+    assert folder == run / "best" and results["final"] == results["best"]
+    (run / "vecnormalize.pkl").write_bytes(b"other statistics")  # same weights, other statistics
+    seen.clear()
+    ship.choose(run, ["SRPB-Crowd-v0"], 100)
+    assert seen == [run / "best" / "model.zip", run / "model.zip"]
+
+
 def _fake_run(run, best: bool, interrupted: bool = False):
     """A run folder as srpb-gym train leaves it, with placeholder model files."""
     (run / "best").mkdir(parents=True) if best else run.mkdir(parents=True)
@@ -157,7 +182,7 @@ def _fake_run(run, best: bool, interrupted: bool = False):
 def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     from training import ship
 
-    def evaluate(model, env_ids, episodes, seed, out):
+    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
         good = model.parent.name == "run"  # the final model is the better one here
         return {env: {"success": 1.0 if good else 0.5, "collision": 0.0, "timeout": 0.0,
                       "m_psi": 10.0, "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0}

@@ -149,12 +149,12 @@ def test_wall_clock_limit_stops_as_finished(tmp_path):
         ),
         (["--env", "SRPB-Mix-v0", "--hyperparams", "gamma=0.999"], "could learn to crash"),
         (
-            ["--env", "SRPB-Crowd-v0", "--env-kwargs", "crowd={robot_reaction: 0.0}"],
-            "--env-kwargs: periodic evaluation runs the environment as registered, not with crowd",
+            ["--env", "SRPB-Crowd-v0", "--env-kwargs", "colour=1"],
+            "--env-kwargs: colour: SRPB-Crowd-v0 takes no such argument",
         ),
         (
-            ["--env", "SRPB-Crowd-v0", "--hyperparams", "eval_freq=0", "--env-kwargs", "colour=1"],
-            "--env-kwargs: ",
+            ["--env", "SRPB-Crowd-v0", "--env-kwargs", "crowd={robot_reaction: fast}"],
+            "--env-kwargs: crowd.robot_reaction: SRPB-Crowd-v0: expected a number, got 'fast'",
         ),
         (["--env", "SRPB-Crowd-v0", "--max-minutes", "0"], "--max-minutes: must be > 0"),
     ],
@@ -248,7 +248,34 @@ def test_mix_draw_weights_train_with_periodic_evaluation(tmp_path, capsys):
     with open(out / "evaluations.csv", newline="") as f:
         envs = [r["env"] for r in csv.DictReader(f)]
     assert envs == list(SCENARIO_IDS)  # each scenario, weight 0 or not
-    other = ["train", "--env", "SRPB-Mix-v0", "--env-kwargs", "weights=[0, 1, 0, 0, 0]",
-             "crowd={robot_reaction: 0.0}", "--out", str(tmp_path / "other")]  # fmt: skip
+    other = ["train", "--env", "SRPB-Mix-v0", "--env-kwargs", "weights=[1, 1]",
+             "scenarios=[corridor, crowd]", "--out", str(tmp_path / "other")]  # fmt: skip
+    capsys.readouterr()
     assert main(other) == 2
-    assert "as registered, not with crowd" in capsys.readouterr().err
+    assert capsys.readouterr().err.strip() == (
+        "srpb-gym: error: --env-kwargs: scenarios: periodic evaluation runs every packaged "
+        "scenario, not the scenarios given: set eval_freq=0 (--hyperparams) or leave them out"
+    )
+
+
+def test_periodic_evaluation_uses_the_env_kwargs(tmp_path, capsys):
+    """Env kwargs that change what the policy sees (here three people slots instead of six)
+    reach the periodic evaluation; `srpb-gym eval` takes them too, and refuses the model
+    without them."""
+    out = tmp_path / "run"
+    rc = main(["train", "--env", "SRPB-Corridor-v0", "--reward", "task", "--steps", "256",
+               "--hyperparams", *SMALL, "n_envs=1", "n_steps=256", "eval_freq=256",
+               "--env-kwargs", "observation={people: 3}", "reward_weights={time: -0.2}",
+               "--out", str(out), "--no-progress"])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+    stored = json.loads(next((out / "eval").glob("step_*/config.json")).read_text())
+    assert stored["env_kwargs"] == {"observation": {"people": 3}}  # the reward is not used
+    assert stored["envs"][0]["kwargs"]["observation"] == {"people": 3}
+    model = str(out / "best" / "model.zip")
+    args = ["eval", "--env", "SRPB-Corridor-v0", "--policy", model, "--episodes", "1"]
+    assert main([*args, "--out", str(tmp_path / "e1"),
+                 "--env-kwargs", "observation={people: 3}"]) == 0  # fmt: skip
+    capsys.readouterr()
+    assert main([*args, "--out", str(tmp_path / "e2")]) == 2
+    err = capsys.readouterr().err
+    assert "--policy" in err and "observation" in err and "(SRPB-Corridor-v0)" in err, err

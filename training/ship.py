@@ -29,7 +29,7 @@ import yaml
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.training.callbacks import eval_score, summarize_results
-from srpb_gym.training.run import eval_env_ids
+from srpb_gym.training.run import eval_env_ids, eval_env_kwargs
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
@@ -39,10 +39,13 @@ TEST_SEED, TEST_EPISODES = 10_000, 100
 VALIDATION_SEED = 3_000_000
 
 
-def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path) -> dict:
-    """Test figures by env id of ``model`` (its vecnormalize.pkl beside it)."""
+def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path,
+             env_kwargs: dict[str, Any] | None = None) -> dict:  # fmt: skip
+    """Test figures by env id of ``model`` (its vecnormalize.pkl beside it), the
+    environments made with ``env_kwargs``."""
     config = resolve_config(env_ids, policies=[str(model)], episodes=episodes, seed=seed,
-                            out=str(out), warmup=0, workers=1, log=None)  # fmt: skip
+                            out=str(out), warmup=0, workers=1, log=None,
+                            env_kwargs=env_kwargs)  # fmt: skip
     outcome = run_evaluation(config, log=lambda line: None)
     return summarize_results(outcome.results)
 
@@ -164,16 +167,32 @@ def best_step(run: Path) -> int | None:
     return best
 
 
-def choose(run: Path, env_ids: list[str], episodes: int) -> tuple[Path, dict[str, Any]]:
+def same_model(a: Path, b: Path) -> bool:
+    """Whether two checkpoint folders hold the same model file and statistics (byte for
+    byte; a folder without a model file holds no model)."""
+    if not ((a / "model.zip").is_file() and (b / "model.zip").is_file()):
+        return False
+    return all((a / f).is_file() == (b / f).is_file()
+               and (not (a / f).is_file() or (a / f).read_bytes() == (b / f).read_bytes())
+               for f in ("model.zip", "vecnormalize.pkl"))  # fmt: skip
+
+
+def choose(run: Path, env_ids: list[str], episodes: int,
+           env_kwargs: dict[str, Any] | None = None) -> tuple[Path, dict[str, Any]]:  # fmt: skip
     """``best/`` or the final model of ``run``, whichever scores higher
     (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then mean median m_psi)
-    on ``episodes`` seeds from :data:`VALIDATION_SEED`; ``best/`` on a tie. Returns the
-    chosen folder and the validation figures of both."""
+    on ``episodes`` seeds from :data:`VALIDATION_SEED`; ``best/`` on a tie (and without a
+    second evaluation when ``best/`` is the final model). Returns the chosen folder and the
+    validation figures of both."""
     figures: dict[str, Any] = {}
     for label, folder in (("best", run / "best"), ("final", run)):
         work = run / "validation" / label
         shutil.rmtree(work, ignore_errors=True)
-        figures[label] = evaluate(folder / "model.zip", env_ids, episodes, VALIDATION_SEED, work)
+        if label == "final" and same_model(run / "best", run):
+            figures[label] = figures["best"]
+            continue
+        figures[label] = evaluate(folder / "model.zip", env_ids, episodes, VALIDATION_SEED,
+                                  work, env_kwargs)  # fmt: skip
     better = eval_score(figures["final"].values()) > eval_score(figures["best"].values())
     return (run if better else run / "best"), {
         "episodes": episodes,
@@ -190,18 +209,19 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
     env_ids = eval_env_ids(config["env"])
+    env_kwargs = eval_env_kwargs(config["env"], config.get("env_kwargs") or {})
     has_best = (run / "best" / "model.zip").is_file()
     if not has_best and not final:
         print(f"{run}: no best/ (no periodic evaluation): shipping the final model"
               + (" without validation" if validate else ""), file=sys.stderr)  # fmt: skip
     validation = None
     if validate and has_best:
-        checkpoint, validation = choose(run, env_ids, validate)
+        checkpoint, validation = choose(run, env_ids, validate, env_kwargs)
     else:
         checkpoint = run if final or not has_best else run / "best"
     work = run / "test"
     shutil.rmtree(work, ignore_errors=True)
-    results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work)
+    results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work, env_kwargs)
     target = MODELS_DIR / name
     shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
     target.mkdir(parents=True)

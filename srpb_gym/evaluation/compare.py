@@ -9,6 +9,7 @@ apart as columns of their own (``planner@run``) with a note of each run's settin
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -33,14 +34,16 @@ class Run:
 
 
 def run_settings(config: Any) -> dict[str, Any] | None:
-    """``{"semantics", "preset", "robots", "metric_params": {env: params}}`` of a run's
-    ``config.json`` content (``robots`` absent: 1), or ``None`` when it does not say them."""
+    """``{"semantics", "preset", "robots", "env_kwargs", "metric_params": {env: params}}``
+    of a run's ``config.json`` content (``robots`` absent: 1, ``env_kwargs`` absent: none),
+    or ``None`` when it does not say them."""
     if not isinstance(config, dict) or not {"semantics", "preset"} <= set(config):
         return None
     envs = config.get("envs") if isinstance(config.get("envs"), list) else []
     params = {e["id"]: e.get("metric_params") for e in envs if isinstance(e, dict) and "id" in e}
     return {"semantics": config["semantics"], "preset": config["preset"],
-            "robots": config.get("robots", 1), "metric_params": params}  # fmt: skip
+            "robots": config.get("robots", 1), "env_kwargs": config.get("env_kwargs", {}),
+            "metric_params": params}  # fmt: skip
 
 
 def load_run(path: str) -> Run:
@@ -57,10 +60,12 @@ def load_run(path: str) -> Run:
 
 
 def settings_differences(a: dict[str, Any], b: dict[str, Any]) -> list[tuple[str, Any, Any]]:
-    """Differing keys of two runs' settings: semantics, preset, robots, and the metric
-    parameters of the scenarios both ran (``metric_params.<env>.<name>``)."""
+    """Differing keys of two runs' settings: semantics, preset, robots, the environments'
+    keyword arguments (``env_kwargs.<key>``) and the metric parameters of the scenarios
+    both ran (``metric_params.<env>.<name>``)."""
     keys = ("semantics", "preset", "robots")
     diffs = [(k, a.get(k, 1), b.get(k, 1)) for k in keys if a.get(k, 1) != b.get(k, 1)]
+    diffs += differences(a.get("env_kwargs", {}), b.get("env_kwargs", {}), "env_kwargs")
     common = [env for env in a["metric_params"] if env in b["metric_params"]]
     for env in common:
         diffs += differences(a["metric_params"][env], b["metric_params"][env],
@@ -95,7 +100,9 @@ def _check_settings(runs: list[Run], separate: bool) -> list[str]:
         s = run.settings
         what = ("settings unknown (no config.json)" if s is None
                 else f"semantics {s['semantics']}, preset {s['preset']}, robots "
-                     f"{s.get('robots', 1)}")  # fmt: skip
+                     f"{s.get('robots', 1)}"
+                     + (f", env kwargs {json.dumps(s['env_kwargs'])}" if s.get("env_kwargs")
+                        else ""))  # fmt: skip
         notes.append(f"  {run.label}: {what}")
     notes += [f"  {p}" for p in problems if "other settings" in p]
     return notes
@@ -147,7 +154,8 @@ def _merged_config(runs: list[Run], notes: list[str]) -> dict[str, Any]:
         params |= (run.settings or {}).get("metric_params", {})
     envs = [{"id": env, "metric_params": p} for env, p in params.items()]
     return doc | {"semantics": first["semantics"], "preset": first["preset"],
-                  "robots": first.get("robots", 1), "envs": envs}  # fmt: skip
+                  "robots": first.get("robots", 1), "env_kwargs": first.get("env_kwargs", {}),
+                  "envs": envs}  # fmt: skip
 
 
 def _label_planners(runs: list[Run], every: bool) -> list[EpisodeResult]:

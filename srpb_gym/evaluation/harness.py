@@ -195,6 +195,7 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
         "warmup": {"steps": config.warmup, "seed": config.warmup_seed},
         "video": config.video,
         "robots": config.robots,
+        "env_kwargs": dict(config.make_kwargs),
         "out": config.out,
         "record_dirs": "episodes/<env id>/<planner>/",
         "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"),

@@ -119,7 +119,8 @@ def check_resumable(config: EvalConfig, resolved: dict[str, Any], versions: dict
     now = json.loads(json.dumps(jsonable(resolved)))
     if not isinstance(stored, dict):
         raise InputError("not an evaluation configuration (not a JSON object)", path)
-    stored = {"robots": 1, **stored}  # runs made before --robots had one robot
+    # runs made before --robots had one robot, and before --env-kwargs none
+    stored = {"robots": 1, "env_kwargs": {}, **stored}
     stored_cmp = {k: v for k, v in stored.items() if k not in RESUME_FREE}
     now_cmp = {k: v for k, v in now.items() if k not in RESUME_FREE}
     diffs = sorted(differences(stored_cmp, now_cmp), key=lambda d: len(_PATH.split(d[0])))

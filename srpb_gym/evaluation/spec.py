@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from srpb_gym.errors import InputError
+from srpb_gym.errors import InputError, env_kwargs_error
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
 from srpb_gym.planners import PLANNERS, Planner, check_settings, make_planner, planner_config
 from srpb_gym.registration import CUSTOM_ID, MIX_ID, SCENARIO_IDS
@@ -91,7 +91,9 @@ class EvalConfig:
     each planner before its first timed episode in each process (0: none). ``resume``:
     continue the run in ``out``. ``notes``: warnings and notes of the resolution
     (one line each, e.g. ``"warning: ..."``). ``robots``: robots per episode; more than
-    one runs the PettingZoo environment (:meth:`make_parallel`), one the Gymnasium one."""
+    one runs the PettingZoo environment (:meth:`make_parallel`), one the Gymnasium one.
+    ``make_kwargs``: keyword arguments given to every environment (``--env-kwargs``), under
+    the evaluation's own (:meth:`env_kwargs`)."""
 
     envs: tuple[str, ...]
     planners: tuple[PlannerSpec, ...]
@@ -108,6 +110,7 @@ class EvalConfig:
     resume: bool = False
     notes: tuple[str, ...] = ()
     robots: int = 1
+    make_kwargs: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def seeds(self) -> list[int]:
@@ -151,9 +154,11 @@ class EvalConfig:
     def env_kwargs(
         self, env_id: str, planner: str | None = None, *, render: bool = True
     ) -> dict[str, Any]:
-        """Keyword arguments of ``gym.make(self.gym_id(env_id), ...)`` (records only with
-        ``planner``; rendering with ``render`` when videos are filmed)."""
-        kwargs: dict[str, Any] = {"metrics": {"semantics": self.semantics, "preset": self.preset}}
+        """Keyword arguments of ``gym.make(self.gym_id(env_id), ...)``: :attr:`make_kwargs`,
+        then the metric settings, the scenario file, the records (only with ``planner``) and
+        rendering (with ``render`` when videos are filmed)."""
+        kwargs: dict[str, Any] = dict(self.make_kwargs)
+        kwargs["metrics"] = {"semantics": self.semantics, "preset": self.preset}
         if self.scenario_file(env_id) is not None:
             kwargs["scenario"] = self.scenario_file(env_id)
         if planner is not None:
@@ -208,6 +213,7 @@ def resolve_config(
     resume: bool = False,
     log: Callable[[str], None] | None = stderr_log,
     robots: int = 1,
+    env_kwargs: Mapping[str, Any] | None = None,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
     planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
@@ -222,7 +228,11 @@ def resolve_config(
     number of episodes, with a warning. ``resume``: continue the run in ``out`` (see
     :mod:`srpb_gym.evaluation.outdir`). ``robots``: robots per episode, at most what every
     scenario places (else an error naming the limit, key ``--robots``). ``log`` receives
-    each note and warning as it is made (they are also kept in ``notes``).
+    each note and warning as it is made (they are also kept in ``notes``). ``env_kwargs``:
+    keyword arguments of every environment (e.g. ``{"crowd": {"robot_reaction": 0.0}}``, or
+    the ``observation`` a policy was trained with), checked by making each environment
+    (errors: key ``--env-kwargs``); the keys the evaluation sets itself
+    (:data:`RESERVED_ENV_KWARGS`) are refused.
     """
     from srpb_gym.evaluation.outdir import check_out_dir
     from srpb_gym.evaluation.policies import policy_specs
@@ -243,11 +253,14 @@ def resolve_config(
         raise InputError(f"choose one of: {', '.join(PRESETS)}", key="--preset")
     env_ids, files = resolve_envs(envs or DEFAULT_ENVS)
     _check_robots(robots, env_ids, dict(files))
+    probe = EvalConfig(tuple(env_ids), (), scenario_files=tuple(files), robots=robots,
+                       make_kwargs=_check_env_kwargs(env_kwargs))  # fmt: skip
+    if probe.make_kwargs:
+        _probe_envs(probe)
     if planners is None and not policies:
         planners = list(PLANNERS)
     settings = check_settings(planner_settings or {})
     specs = [_planner_spec(name, settings.get(name)) for name in _unique(planners or ())]
-    probe = EvalConfig(tuple(env_ids), (), scenario_files=tuple(files))
     specs += policy_specs(policies, policy_algo, vecnormalize, probe, note)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
@@ -257,7 +270,40 @@ def resolve_config(
     out = check_out_dir(out or default_out(), resume=resume)
     return EvalConfig(tuple(env_ids), tuple(specs), episodes, seed, out, workers, video,
                       semantics, preset, tuple(argv), tuple(files), warmup, resume,
-                      tuple(notes), robots)  # fmt: skip
+                      tuple(notes), robots, probe.make_kwargs)  # fmt: skip
+
+
+#: ``gym.make`` keywords an evaluation sets itself, with the option that sets each
+RESERVED_ENV_KWARGS: dict[str, str] = {
+    "metrics": "--semantics and --preset",
+    "scenario": "--env with a scenario file",
+    "record_dir": "the evaluation (episodes/ in --out)",
+    "render_mode": "--video",
+    "n_robots": "--robots",
+}
+
+
+def _check_env_kwargs(env_kwargs: Mapping[str, Any] | None) -> dict[str, Any]:
+    if env_kwargs is None:
+        return {}
+    if not isinstance(env_kwargs, Mapping):
+        raise InputError(f"expected KEY=VALUE pairs, got {env_kwargs!r}", key="--env-kwargs")
+    for key in env_kwargs:
+        if key in RESERVED_ENV_KWARGS:
+            raise InputError(f"set by {RESERVED_ENV_KWARGS[key]}, not here",
+                             key=f"--env-kwargs: {key}")  # fmt: skip
+    return dict(env_kwargs)
+
+
+def _probe_envs(probe: EvalConfig) -> None:
+    """Make each environment of ``probe`` once, so that a keyword it does not take (or a
+    bad value) fails now, naming the environment, rather than in a worker."""
+    for env_id in probe.envs:
+        try:
+            env = probe.make_parallel(env_id) if probe.robots > 1 else probe.make_env(env_id)
+        except (TypeError, ValueError) as exc:
+            raise env_kwargs_error(env_id, exc) from None
+        env.close()
 
 
 def resolve_envs(items: Sequence[str]) -> tuple[list[str], list[tuple[str, str]]]:

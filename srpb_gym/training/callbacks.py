@@ -157,11 +157,15 @@ class PeriodicEvalCallback(BaseCallback):
     evaluated by the ``srpb-gym eval`` harness on ``env_ids`` (``episodes`` episodes each,
     seeds from :data:`EVAL_SEED`) into ``<run>/eval/<step>``. The best checkpoint (highest
     success rate over all evaluated environments, then lowest median ``m_psi``) is copied
-    to ``<run>/best``. Only the latest and the best checkpoints are kept."""
+    to ``<run>/best``. Only the latest and the best checkpoints are kept. ``env_kwargs``:
+    keyword arguments of the evaluated environments (those of training that change what
+    the policy sees or meets, e.g. ``observation`` or ``crowd``)."""
 
     def __init__(self, run_dir: str, env_ids: Sequence[str], eval_freq: int, episodes: int,
-                 log: Any = None, progress: bool = True) -> None:  # fmt: skip
+                 log: Any = None, progress: bool = True,
+                 env_kwargs: Mapping[str, Any] | None = None) -> None:  # fmt: skip
         super().__init__()
+        self.env_kwargs = dict(env_kwargs or {})
         self.progress = progress
         self.run_dir, self.env_ids = run_dir, list(env_ids)
         self.eval_freq, self.episodes = eval_freq, episodes
@@ -191,7 +195,7 @@ class PeriodicEvalCallback(BaseCallback):
         config = resolve_config(
             self.env_ids, policies=[os.path.join(ckpt, "model.zip")], episodes=self.episodes,
             seed=EVAL_SEED, out=os.path.join(self.run_dir, "eval", f"step_{step:09d}"),
-            warmup=0, log=None,
+            warmup=0, log=None, env_kwargs=self.env_kwargs,
         )  # fmt: skip
         outcome = run_evaluation(config, log=self.log, progress=self.progress)
         figures = summarize_results(outcome.results)

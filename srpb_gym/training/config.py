@@ -14,12 +14,12 @@ Imports neither stable-baselines3 nor torch.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.resources import files
 from typing import Any
 
-from srpb_gym.config import from_dict
+from srpb_gym.config import from_dict, parse_overrides
 from srpb_gym.errors import InputError
 from srpb_gym.scenarios.yaml_io import read_file, read_yaml
 
@@ -172,23 +172,6 @@ def load_entries(source: Any = None) -> tuple[dict[str, dict[str, Any]], dict[st
     for key, entry in data.items():  # every entry valid, merged with the default
         _build({**data.get(DEFAULT_KEY, {}), **entry}, str(key), name, lines)
     return {str(k): dict(v) for k, v in data.items()}, lines, name
-
-
-def parse_overrides(items: Sequence[str], option: str = "--hyperparams") -> dict[str, Any]:
-    """``["n_steps=1024", "net_arch=[64, 64]"]`` -> ``{"n_steps": 1024, "net_arch": [64, 64]}``
-    (values read as YAML by the safe reader: plain data only)."""
-    out: dict[str, Any] = {}
-    for item in items:
-        key, sep, text = item.partition("=")
-        key = key.strip()
-        if not sep or not key:
-            raise InputError(f"expected KEY=VALUE, got {item!r}", key=option)
-        try:
-            value, _ = read_yaml(text, f"{option} {key}")
-        except InputError as exc:
-            raise InputError(exc.message, key=f"{option}: {key}") from None
-        out[key] = value
-    return out
 
 
 def resolve(

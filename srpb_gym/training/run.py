@@ -38,7 +38,7 @@ import gymnasium as gym
 import yaml
 
 import srpb_gym  # noqa: F401  (registers the ids)
-from srpb_gym.errors import InputError
+from srpb_gym.errors import InputError, env_kwargs_error
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.registration import MIX_ID, SCENARIO_IDS
@@ -53,7 +53,8 @@ from srpb_gym.training.callbacks import (
 )
 from srpb_gym.training.config import TrainConfig
 
-#: env kwargs that change only the reward, which evaluation does not use
+#: env kwargs that change only the reward, which evaluation does not use (periodic
+#: evaluation makes its environments with the others)
 REWARD_ONLY_KWARGS = frozenset({"reward_weights"})
 #: kwargs of SRPB-Mix-v0 that change only how often each scenario is drawn in training:
 #: periodic evaluation runs the registered mixture, as the test seeds do (each scenario
@@ -76,6 +77,13 @@ def eval_env_ids(env_id: str) -> list[str]:
     """The ids a model trained on ``env_id`` is evaluated on: the id itself, or every
     packaged scenario's id for the mixture."""
     return list(SCENARIO_IDS) if env_id == MIX_ID else [env_id]
+
+
+def eval_env_kwargs(env_id: str, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
+    """The env kwargs of training that an evaluation of the model keeps: all but those that
+    change only the reward or, for the mixture, how often each scenario is drawn."""
+    neutral = REWARD_ONLY_KWARGS | (MIX_DRAW_KWARGS if env_id == MIX_ID else frozenset())
+    return {k: v for k, v in env_kwargs.items() if k not in neutral}
 
 
 def default_out(env_id: str, preset: str, now: float | None = None) -> str:
@@ -119,9 +127,7 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
     try:
         env = gym.make(env_id, reward=preset, **env_kwargs)
     except (TypeError, ValueError) as exc:
-        if isinstance(exc, InputError):
-            raise
-        raise InputError(str(exc), key="--env-kwargs") from None
+        raise env_kwargs_error(env_id, exc) from None
     try:
         base = env.unwrapped
         if base.task.collision_mode != "terminate":
@@ -172,12 +178,11 @@ def train(
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
-    neutral = REWARD_ONLY_KWARGS | (MIX_DRAW_KWARGS if env_id == MIX_ID else frozenset())
-    changing = sorted(set(env_kwargs) - neutral)
-    if changing and config.eval_freq > 0:
-        raise InputError(f"periodic evaluation runs the environment as registered, not with "
-                         f"{', '.join(changing)}: set eval_freq=0 (--hyperparams) or leave "
-                         "them out", key="--env-kwargs")  # fmt: skip
+    eval_kwargs = eval_env_kwargs(env_id, env_kwargs)
+    if env_id == MIX_ID and "scenarios" in eval_kwargs and config.eval_freq > 0:
+        raise InputError("periodic evaluation runs every packaged scenario, not the "
+                         "scenarios given: set eval_freq=0 (--hyperparams) or leave them "
+                         "out", key="--env-kwargs: scenarios")  # fmt: skip
     check_env_args(env_id, preset, env_kwargs, config.gamma)
     if init is not None and config.pretrain_planner:
         raise InputError("start from a trained model or from a planner's demonstrations "
@@ -227,7 +232,8 @@ def train(
             callbacks.append(bar)
         if config.eval_freq > 0:
             callbacks.append(PeriodicEvalCallback(out, eval_env_ids(env_id), config.eval_freq,
-                                                  config.eval_episodes, log, progress))  # fmt: skip
+                                                  config.eval_episodes, log, progress,
+                                                  env_kwargs=eval_kwargs))  # fmt: skip
         limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)
         if limit is not None:
             callbacks.append(limit)
