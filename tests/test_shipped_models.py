@@ -206,3 +206,23 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     assert card["checkpoint"] == "final" and card["validation"] is None
     assert "no best/" in capsys.readouterr().err
     assert "stopped by hand" not in (shipped / "card.md").read_text()
+
+
+def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):
+    """A fine-tuned model's curve continues from its initial model's steps, labelled by the
+    name of that model (a shipped model's folder, or a run for a run's best/)."""
+    import json
+
+    from training.plot_curves import MODELS_DIR, start
+
+    folder = tmp_path / "ppo-crowd-srpb"
+    folder.mkdir()
+    assert start(folder) == (0, None)  # no card
+    for model, name in (("srpb_gym/models/ppo-crowd-task/model.zip", "ppo-crowd-task"),
+                        ("runs/train/crowd-social/best/model.zip", "crowd-social/best"),
+                        (None, None)):  # fmt: skip
+        init = None if model is None else {"model": model, "steps": 1_100_000}
+        (folder / "card.json").write_text(json.dumps({"training": {"init": init}}))
+        assert start(folder) == ((0, None) if model is None else (1_100_000, name))
+    shipped = start(MODELS_DIR / "ppo-crowd-srpb")
+    assert shipped[1] == "ppo-crowd-task" and shipped[0] > 0

@@ -42,13 +42,18 @@ def read_curve(path: Path) -> dict[str, list[float]]:
     return out
 
 
-def start_step(folder: Path) -> int:
-    """The steps of the model a shipped model started from (0: random weights)."""
+def start(folder: Path) -> tuple[int, str | None]:
+    """The steps of the model a shipped model started from (0: random weights) and that
+    model's name: its folder's (``ppo-crowd-task``), or the run's for a run's ``best/``."""
     card = folder / "card.json"
     if not card.is_file():
-        return 0
+        return 0, None
     init = json.loads(card.read_text(encoding="utf-8")).get("training", {}).get("init")
-    return int(init["steps"]) if init else 0
+    if not init:
+        return 0, None
+    model = Path(init["model"]).parent
+    name = f"{model.parent.name}/{model.name}" if model.name == "best" else model.name
+    return int(init["steps"]), name
 
 
 def plot(scenario: str, curves: dict[str, dict[str, Any]], out: Path) -> Path:
@@ -81,9 +86,9 @@ def main() -> int:
         _, scenario, preset = folder.name.split("-", 2)
         if (folder / "evaluations.csv").is_file():
             curve: dict[str, Any] = read_curve(folder / "evaluations.csv")
-            offset = start_step(folder)
+            offset, origin = start(folder)
             curve["step"] = [offset + step for step in curve["step"]]
-            curve["label"] = preset if not offset else f"{preset} (from the task model)"
+            curve["label"] = preset if origin is None else f"{preset} (from {origin})"
             curves.setdefault(scenario, {})[preset] = curve
     args.out.mkdir(parents=True, exist_ok=True)
     for scenario, by_preset in curves.items():
