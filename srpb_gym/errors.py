@@ -52,9 +52,10 @@ def env_kwargs_error(env_id: str, exc: Exception, option: str = "--env-kwargs") 
     unknown keyword is named (not Gymnasium's message with every keyword argument); an
     :class:`InputError` keeps its location, under ``option``."""
     if isinstance(exc, InputError):
-        where = f" ({exc.path})" if exc.path else ""
+        if exc.path is not None:  # located in a file (a scenario): say where in it
+            return InputError(f"{env_id}: {exc}", key=option)
         key = f"{option}: {exc.key}" if exc.key else option
-        return InputError(f"{env_id}: {exc.message}{where}", key=key)
+        return InputError(f"{env_id}: {exc.message}", key=key)
     match = _UNEXPECTED.search(str(exc))
     if isinstance(exc, TypeError) and match:
         return InputError(f"{env_id} takes no such argument", key=f"{option}: {match[1]}")

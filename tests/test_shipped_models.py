@@ -139,12 +139,27 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
 
 
 def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monkeypatch):
+    """best/ holding the final weights (saved at another time) is evaluated once."""
+    import time
+
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+
     from training import ship
 
     run = tmp_path / "run"
     (run / "best").mkdir(parents=True)
+
+    def tiny(seed: int) -> PPO:
+        return PPO("MlpPolicy", gym.make("SRPB-Corridor-v0"), n_steps=64, batch_size=32,
+                   policy_kwargs={"net_arch": [8]}, seed=seed)  # fmt: skip
+
+    model = tiny(0)
+    model.save(run / "best" / "model.zip")
+    time.sleep(2.1)  # zip time stamps have a resolution of 2 s
+    model.save(run / "model.zip")
+    assert (run / "model.zip").read_bytes() != (run / "best" / "model.zip").read_bytes()
     for folder in (run, run / "best"):
-        (folder / "model.zip").write_bytes(b"the same weights")
         (folder / "vecnormalize.pkl").write_bytes(b"the same statistics")
     seen = []
 
@@ -158,6 +173,11 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
     results = validation["results"]
     assert folder == run / "best" and results["final"] == results["best"]
     (run / "vecnormalize.pkl").write_bytes(b"other statistics")  # same weights, other statistics
+    seen.clear()
+    ship.choose(run, ["SRPB-Crowd-v0"], 100)
+    assert seen == [run / "best" / "model.zip", run / "model.zip"]
+    (run / "vecnormalize.pkl").write_bytes(b"the same statistics")
+    tiny(1).save(run / "model.zip")  # other weights
     seen.clear()
     ship.choose(run, ["SRPB-Crowd-v0"], 100)
     assert seen == [run / "best" / "model.zip", run / "model.zip"]

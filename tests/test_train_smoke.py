@@ -248,14 +248,43 @@ def test_mix_draw_weights_train_with_periodic_evaluation(tmp_path, capsys):
     with open(out / "evaluations.csv", newline="") as f:
         envs = [r["env"] for r in csv.DictReader(f)]
     assert envs == list(SCENARIO_IDS)  # each scenario, weight 0 or not
-    other = ["train", "--env", "SRPB-Mix-v0", "--env-kwargs", "weights=[1, 1]",
-             "scenarios=[corridor, crowd]", "--out", str(tmp_path / "other")]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("env", "kwargs", "evaluated", "label"),
+    [
+        ("SRPB-Mix-v0", ["scenarios=[corridor, fformation]", "weights=[3, 1]"],
+         ["SRPB-Corridor-v0", "SRPB-FFormation-v0"], None),
+        ("SRPB-Custom-v0", ["scenario=envs/corridor.yaml", "max_episode_steps=300",
+                            "metrics={semantics: reference}"], ["corridor"], "envs/corridor.yaml"),
+    ],
+)  # fmt: skip
+def test_periodic_evaluation_runs_the_scenarios_trained_on(
+    env, kwargs, evaluated, label, tmp_path, capsys, monkeypatch
+):
+    """The mixture's `scenarios` and a custom env's `scenario` are what periodic evaluation
+    runs (a file by its scenario's name); the time limit and metric settings of training
+    stay out of it."""
+    from pathlib import Path
+
+    monkeypatch.chdir(Path(__file__).resolve().parents[1])
+    out = tmp_path / "run"
+    rc = main(["train", "--env", env, "--reward", "task", "--steps", "256", "--hyperparams",
+               *SMALL, "n_envs=1", "n_steps=256", "eval_freq=256", "--env-kwargs", *kwargs,
+               "--out", str(out), "--no-progress"])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+    with open(out / "evaluations.csv", newline="") as f:
+        assert [r["env"] for r in csv.DictReader(f)] == evaluated
+    stored = json.loads(next((out / "eval").glob("step_*/config.json")).read_text())
+    assert stored["env_kwargs"] == {} and stored["semantics"] == "paper"
+    if label is not None:
+        assert stored["envs"][0]["scenario_file"] == str(Path(label).resolve())
+    inline = ["train", "--env", "SRPB-Custom-v0", "--env-kwargs",
+              "scenario={name: mine}", "--out", str(tmp_path / "inline")]  # fmt: skip
     capsys.readouterr()
-    assert main(other) == 2
-    assert capsys.readouterr().err.strip() == (
-        "srpb-gym: error: --env-kwargs: scenarios: periodic evaluation runs every packaged "
-        "scenario, not the scenarios given: set eval_freq=0 (--hyperparams) or leave them out"
-    )
+    assert main(inline) == 2
+    err = capsys.readouterr().err
+    assert "srpb-gym: error: --env-kwargs: " in err and "Traceback" not in err, err
 
 
 def test_periodic_evaluation_uses_the_env_kwargs(tmp_path, capsys):

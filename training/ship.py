@@ -6,7 +6,9 @@ Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--fi
 the final model; ``--validate N`` tests both on N validation seeds, none of which chose
 best/, and takes the better by the periodic evaluations' rule), evaluates it with
 the ``srpb-gym eval`` harness on ``--episodes`` unseen seeds from ``--seed`` (100 from
-10000 by default; every packaged scenario for a model trained on SRPB-Mix-v0), and writes
+10000 by default; each scenario of the mixture for a model trained on SRPB-Mix-v0; the
+environments made with the run's env kwargs but those of training only, see
+:func:`srpb_gym.training.run.eval_setup`), and writes
 ``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
 training), ``card.json`` and ``card.md`` (environment id and version, reward preset,
 steps, wall time, machine, seed, command, hyperparameters and the test results).
@@ -21,6 +23,7 @@ import math
 import os
 import shutil
 import sys
+import zipfile
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +32,7 @@ import yaml
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.training.callbacks import eval_score, summarize_results
-from srpb_gym.training.run import eval_env_ids, eval_env_kwargs
+from srpb_gym.training.run import eval_setup
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
@@ -168,13 +171,24 @@ def best_step(run: Path) -> int | None:
 
 
 def same_model(a: Path, b: Path) -> bool:
-    """Whether two checkpoint folders hold the same model file and statistics (byte for
-    byte; a folder without a model file holds no model)."""
+    """Whether two checkpoint folders hold the same model (every member of the two
+    ``model.zip`` archives equal, whatever their time stamps) and the same statistics (byte
+    for byte); a folder without a model file holds no model."""
     if not ((a / "model.zip").is_file() and (b / "model.zip").is_file()):
         return False
-    return all((a / f).is_file() == (b / f).is_file()
-               and (not (a / f).is_file() or (a / f).read_bytes() == (b / f).read_bytes())
-               for f in ("model.zip", "vecnormalize.pkl"))  # fmt: skip
+    try:
+        with zipfile.ZipFile(a / "model.zip") as za, zipfile.ZipFile(b / "model.zip") as zb:
+            if sorted(za.namelist()) != sorted(zb.namelist()):
+                return False
+            if any(za.read(name) != zb.read(name) for name in za.namelist()):
+                return False
+    except zipfile.BadZipFile:  # not a model archive: the bytes decide
+        if (a / "model.zip").read_bytes() != (b / "model.zip").read_bytes():
+            return False
+    stats_a, stats_b = a / "vecnormalize.pkl", b / "vecnormalize.pkl"
+    if stats_a.is_file() != stats_b.is_file():
+        return False
+    return not stats_a.is_file() or stats_a.read_bytes() == stats_b.read_bytes()
 
 
 def choose(run: Path, env_ids: list[str], episodes: int,
@@ -208,8 +222,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
         raise ValueError("final and validate exclude each other")
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
-    env_ids = eval_env_ids(config["env"])
-    env_kwargs = eval_env_kwargs(config["env"], config.get("env_kwargs") or {})
+    env_ids, env_kwargs = eval_setup(config["env"], config.get("env_kwargs"))
     has_best = (run / "best" / "model.zip").is_file()
     if not has_best and not final:
         print(f"{run}: no best/ (no periodic evaluation): shipping the final model"

@@ -110,7 +110,7 @@ class EvalConfig:
     resume: bool = False
     notes: tuple[str, ...] = ()
     robots: int = 1
-    make_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    make_kwargs: Mapping[str, Any] = field(default_factory=dict, hash=False)
 
     @property
     def seeds(self) -> list[int]:
@@ -280,6 +280,8 @@ RESERVED_ENV_KWARGS: dict[str, str] = {
     "record_dir": "the evaluation (episodes/ in --out)",
     "render_mode": "--video",
     "n_robots": "--robots",
+    "max_episode_steps": "the scenario's time_limit (a scenario file as --env)",
+    "max_steps": "the scenario's time_limit (a scenario file as --env)",
 }
 
 

@@ -39,9 +39,9 @@ def add_train_command(subparsers: Any) -> None:
     p.add_argument("--hyperparams", nargs="+", default=[], metavar="KEY=VALUE",
                    help="override hyperparameters: n_steps=1024 'net_arch=[64, 64]'")  # fmt: skip
     p.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
-                   help="gym.make arguments: 'crowd={robot_reaction: 0.0}' (with periodic "
-                   "evaluation only reward_weights, and SRPB-Mix-v0's draw weights: "
-                   "'weights=[1, 1, 1, 2, 3]')")  # fmt: skip
+                   help="gym.make arguments: 'crowd={robot_reaction: 0.0}', SRPB-Mix-v0's "
+                   "'weights=[1, 1, 1, 2, 3]'; periodic evaluation takes them but the "
+                   "reward, the time limit and the mixture's draws")  # fmt: skip
     p.add_argument("--config", metavar="FILE", help="hyperparameter file (default: the packaged "
                    "configs/train/ppo.yaml)")  # fmt: skip
     p.add_argument("--out", metavar="DIR", help="run folder (default runs/train/ID-PRESET-TIME)")

@@ -41,7 +41,7 @@ import srpb_gym  # noqa: F401  (registers the ids)
 from srpb_gym.errors import InputError, env_kwargs_error
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
-from srpb_gym.registration import MIX_ID, SCENARIO_IDS
+from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 from srpb_gym.reward import PRESET_GAMMA, TERMS, preset_names, shaping_bound
 from srpb_gym.training.callbacks import (
     EpisodeStatsCallback,
@@ -53,12 +53,15 @@ from srpb_gym.training.callbacks import (
 )
 from srpb_gym.training.config import TrainConfig
 
-#: env kwargs that change only the reward, which evaluation does not use (periodic
-#: evaluation makes its environments with the others)
-REWARD_ONLY_KWARGS = frozenset({"reward_weights"})
+#: env kwargs of training that an evaluation of the model leaves out: the reward (which
+#: evaluation does not use), the time limit (evaluations run the scenario's), and what
+#: the evaluation sets itself (metric settings, records, rendering)
+TRAINING_ONLY_KWARGS = frozenset({
+    "reward", "reward_weights", "max_episode_steps", "metrics", "record_dir", "render_mode",
+})  # fmt: skip
 #: kwargs of SRPB-Mix-v0 that change only how often each scenario is drawn in training:
-#: periodic evaluation runs the registered mixture, as the test seeds do (each scenario
-#: as often as the others)
+#: periodic evaluation runs each scenario of the mixture as often as the others, as the
+#: test seeds do
 MIX_DRAW_KWARGS = frozenset({"weights"})
 
 
@@ -73,17 +76,43 @@ class TrainResult:
     interrupted: bool
 
 
+def eval_setup(
+    env_id: str, env_kwargs: Mapping[str, Any] | None = None
+) -> tuple[list[str], dict[str, Any]]:
+    """What a model trained on ``env_id`` with ``env_kwargs`` is evaluated on: the
+    environments (registered ids, or scenario files) and their keyword arguments.
+
+    A single scenario's id is evaluated as itself; ``SRPB-Mix-v0`` on each of its scenarios
+    (``scenarios``, default the packaged ones), each as often as the others;
+    ``SRPB-Custom-v0`` on its ``scenario``. The kwargs are those of training but
+    :data:`TRAINING_ONLY_KWARGS` and the mixture's (``scenarios``, ``weights``) or the
+    scenario."""
+    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k not in TRAINING_ONLY_KWARGS}
+    if env_id == MIX_ID:
+        for key in MIX_DRAW_KWARGS:
+            kwargs.pop(key, None)
+        scenarios = kwargs.pop("scenarios", None)
+        items = MIX_SCENARIOS if scenarios is None else scenarios
+        return [_eval_target(item, "scenarios") for item in items], kwargs
+    if env_id == CUSTOM_ID:
+        return [_eval_target(kwargs.pop("scenario", "corridor"), "scenario")], kwargs
+    return [env_id], kwargs
+
+
+def _eval_target(item: Any, key: str) -> str:
+    """The id of a packaged scenario's name, or a scenario file's path."""
+    if not isinstance(item, (str, os.PathLike)):
+        raise InputError("an evaluation runs scenarios by name or file, not given inline: "
+                         "write the scenario to a file, or set eval_freq=0 (--hyperparams)",
+                         key=f"--env-kwargs: {key}")  # fmt: skip
+    ids = {name: env_id for env_id, name in SCENARIO_IDS.items()}
+    return ids.get(os.fspath(item), os.fspath(item))
+
+
 def eval_env_ids(env_id: str) -> list[str]:
-    """The ids a model trained on ``env_id`` is evaluated on: the id itself, or every
-    packaged scenario's id for the mixture."""
-    return list(SCENARIO_IDS) if env_id == MIX_ID else [env_id]
-
-
-def eval_env_kwargs(env_id: str, env_kwargs: Mapping[str, Any]) -> dict[str, Any]:
-    """The env kwargs of training that an evaluation of the model keeps: all but those that
-    change only the reward or, for the mixture, how often each scenario is drawn."""
-    neutral = REWARD_ONLY_KWARGS | (MIX_DRAW_KWARGS if env_id == MIX_ID else frozenset())
-    return {k: v for k, v in env_kwargs.items() if k not in neutral}
+    """The ids a model trained on ``env_id`` with no env kwargs is evaluated on: the id
+    itself, or every packaged scenario's id for the mixture (see :func:`eval_setup`)."""
+    return eval_setup(env_id)[0]
 
 
 def default_out(env_id: str, preset: str, now: float | None = None) -> str:
@@ -178,12 +207,8 @@ def train(
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
-    eval_kwargs = eval_env_kwargs(env_id, env_kwargs)
-    if env_id == MIX_ID and "scenarios" in eval_kwargs and config.eval_freq > 0:
-        raise InputError("periodic evaluation runs every packaged scenario, not the "
-                         "scenarios given: set eval_freq=0 (--hyperparams) or leave them "
-                         "out", key="--env-kwargs: scenarios")  # fmt: skip
     check_env_args(env_id, preset, env_kwargs, config.gamma)
+    eval_ids, eval_kwargs = eval_setup(env_id, env_kwargs) if config.eval_freq > 0 else ([], {})
     if init is not None and config.pretrain_planner:
         raise InputError("start from a trained model or from a planner's demonstrations "
                          "(pretrain_planner), not both", key="--init")  # fmt: skip
@@ -231,7 +256,7 @@ def train(
             bar = ProgressCallback(config.n_timesteps, outcomes)
             callbacks.append(bar)
         if config.eval_freq > 0:
-            callbacks.append(PeriodicEvalCallback(out, eval_env_ids(env_id), config.eval_freq,
+            callbacks.append(PeriodicEvalCallback(out, eval_ids, config.eval_freq,
                                                   config.eval_episodes, log, progress,
                                                   env_kwargs=eval_kwargs))  # fmt: skip
         limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)

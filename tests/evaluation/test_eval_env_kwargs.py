@@ -11,6 +11,7 @@ import pytest
 
 from srpb_gym.cli import main
 
+ROOT = Path(__file__).resolve().parents[2]
 ENV = "SRPB-Corridor-v0"
 BASE = ["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "1"]
 SLOW = "robot={v_max: 0.25}"
@@ -65,6 +66,11 @@ def test_the_kwargs_reach_the_environment_and_config_json(runs):
         (["observation={people: many}"],
          f"--env-kwargs: observation.people: {ENV}: expected an integer, got 'many'"),
         (["robot"], "--env-kwargs: expected KEY=VALUE, got 'robot'"),
+        (["max_episode_steps=5"], "--env-kwargs: max_episode_steps: set by the scenario's "
+         "time_limit (a scenario file as --env), not here"),
+        # an error located in the scenario file names the file, the line and its key
+        (["robot={radius: 3}"], f"--env-kwargs: {ENV}: {ROOT / 'envs' / 'corridor.yaml'}:19: "
+         "robot.start.position: a robot of radius 3 m"),
     ],
 )  # fmt: skip
 def test_bad_kwargs_are_one_line_before_any_episode(kwargs, expected, tmp_path, capsys):
@@ -75,12 +81,22 @@ def test_bad_kwargs_are_one_line_before_any_episode(kwargs, expected, tmp_path, 
     assert not (out / "episodes.csv").exists()
 
 
+def _mef(out: Path) -> dict[str, float]:
+    with open(out / "episodes.csv", newline="") as f:
+        return {r["robot"]: float(r["m_mef"]) for r in csv.DictReader(f)}
+
+
 def test_the_multi_robot_environment_takes_them(tmp_path, capsys):
-    out = tmp_path / "two"
+    out, plain = tmp_path / "two", tmp_path / "plain"
     assert main([*BASE, "--robots", "2", "--out", str(out), "--env-kwargs", SLOW]) == 0
+    assert main([*BASE, "--robots", "2", "--out", str(plain)]) == 0
     config = json.loads((out / "config.json").read_text())
     assert config["envs"][0]["kwargs"]["robot"] == {"v_max": 0.25}
     assert config["envs"][0]["metric_params"]["robot_max_speed"] == 0.25
+    slow, fast = _mef(out), _mef(plain)
+    # go-to-goal drives the two robots into each other: later, at most half as fast
+    assert set(slow) == set(fast) == {"0", "1"}
+    assert all(slow[r] > 1.5 * fast[r] for r in slow), (slow, fast)
     capsys.readouterr()
     assert main([*BASE, "--robots", "2", "--out", str(tmp_path / "bad"),
                  "--env-kwargs", "colour=red"]) == 2  # fmt: skip
