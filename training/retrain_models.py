@@ -97,7 +97,7 @@ RUN_SETTINGS: dict[str, RunSettings] = {
         overrides=("learning_rate=5e-5", *WARM_START),
         minutes=55.0,
         validate=100,
-        env_kwargs=("weights=[1, 1, 2, 2, 3]",),
+        env_kwargs=("weights=[1, 1, 3, 2, 3]",),
     ),
 }
 
