@@ -257,6 +257,8 @@ def test_mix_draw_weights_train_with_periodic_evaluation(tmp_path, capsys):
          ["SRPB-Corridor-v0", "SRPB-FFormation-v0"], None),
         ("SRPB-Custom-v0", ["scenario=envs/corridor.yaml", "max_episode_steps=300",
                             "metrics={semantics: reference}"], ["corridor"], "envs/corridor.yaml"),
+        # a registered id made with another scenario is evaluated on that scenario
+        ("SRPB-Corridor-v0", ["scenario=fformation"], ["SRPB-FFormation-v0"], None),
     ],
 )  # fmt: skip
 def test_periodic_evaluation_runs_the_scenarios_trained_on(

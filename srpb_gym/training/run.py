@@ -82,31 +82,31 @@ def eval_setup(
     """What a model trained on ``env_id`` with ``env_kwargs`` is evaluated on: the
     environments (registered ids, or scenario files) and their keyword arguments.
 
-    A single scenario's id is evaluated as itself; ``SRPB-Mix-v0`` on each of its scenarios
-    (``scenarios``, default the packaged ones), each as often as the others;
-    ``SRPB-Custom-v0`` on its ``scenario``. The kwargs are those of training but
-    :data:`TRAINING_ONLY_KWARGS` and the mixture's (``scenarios``, ``weights``) or the
-    scenario."""
+    ``SRPB-Mix-v0`` is evaluated on each of its scenarios (``scenarios``, default the
+    packaged ones), each as often as the others; any other id on its ``scenario`` when one
+    is given (``SRPB-Custom-v0``: default corridor), else as itself. The kwargs are those of
+    training but :data:`TRAINING_ONLY_KWARGS` and the mixture's (``scenarios``,
+    ``weights``) or the scenario. Scenarios are names or files, as the environments
+    (which training makes first) accept them."""
     kwargs = {k: v for k, v in (env_kwargs or {}).items() if k not in TRAINING_ONLY_KWARGS}
     if env_id == MIX_ID:
         for key in MIX_DRAW_KWARGS:
             kwargs.pop(key, None)
         scenarios = kwargs.pop("scenarios", None)
         items = MIX_SCENARIOS if scenarios is None else scenarios
-        return [_eval_target(item, "scenarios") for item in items], kwargs
-    if env_id == CUSTOM_ID:
-        return [_eval_target(kwargs.pop("scenario", "corridor"), "scenario")], kwargs
+        return [_eval_target(item) for item in items], kwargs
+    if env_id == CUSTOM_ID or "scenario" in kwargs:
+        return [_eval_target(kwargs.pop("scenario", "corridor"))], kwargs
     return [env_id], kwargs
 
 
-def _eval_target(item: Any, key: str) -> str:
+#: the registered id of each packaged scenario, by name
+_SCENARIO_ID = {name: env_id for env_id, name in SCENARIO_IDS.items()}
+
+
+def _eval_target(scenario: str | os.PathLike[str]) -> str:
     """The id of a packaged scenario's name, or a scenario file's path."""
-    if not isinstance(item, (str, os.PathLike)):
-        raise InputError("an evaluation runs scenarios by name or file, not given inline: "
-                         "write the scenario to a file, or set eval_freq=0 (--hyperparams)",
-                         key=f"--env-kwargs: {key}")  # fmt: skip
-    ids = {name: env_id for env_id, name in SCENARIO_IDS.items()}
-    return ids.get(os.fspath(item), os.fspath(item))
+    return _SCENARIO_ID.get(os.fspath(scenario), os.fspath(scenario))
 
 
 def eval_env_ids(env_id: str) -> list[str]:
