@@ -86,7 +86,10 @@ class SRPBNavEnv(gym.Env):
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,
     ``success``, ``collision``, ``time`` and SRPB per-step terms ``obs``, ``vsm``, ``hsm``,
     ``osc``, ``bwd``, ``iprot``, ``chc``, ``psi``, ``fsi``, ``dir``. ``reward="srpb"``
-    (default) or ``"task"`` picks a preset; ``reward_weights`` overrides weights by name.
+    (default) or ``"task"`` picks a preset, which a scenario's ``reward`` section may
+    re-weight (``corridor`` and ``fformation`` pay the ``srpb`` preset's ``obs``, ``psi``,
+    ``fsi`` and ``dir`` five times over, with ``collision`` -110; ``envs/README.md``);
+    ``reward_weights`` overrides weights by name.
     ``info["reward_<term>"]`` holds each weighted term (they sum to the reward) and
     ``info["srpb_step/<term>"]`` the unweighted SRPB terms. The presets cannot be gamed by
     crashing: for a learner discounting by 0.99 per step, every shaping term at its worst
@@ -149,8 +152,9 @@ class SRPBNavEnv(gym.Env):
       the robot's settings (the same values for the default robot). Before the first
       release the reward presets were re-weighted so that no termination pays (collision
       -25, shaping bounded) and the fformation, crowd and doorway scenarios were reworked
-      so that every SRPB metric is exercised: returns and metrics of earlier v0 builds
-      are not comparable with these.
+      so that every SRPB metric is exercised, and corridor and fformation were given
+      five times the ``srpb`` social and obstacle weights: returns and metrics of
+      earlier v0 builds are not comparable with these.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -179,7 +183,7 @@ class SRPBNavEnv(gym.Env):
         self.sim = build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
         self.task: RobotTask = build_task(
             self.sim, 0, self.scenario.robot.goal_tolerance, observation, reward,
-            reward_weights, collision, metrics, record_dir,
+            reward_weights, collision, metrics, record_dir, self.scenario.reward,
         )  # fmt: skip
         self.observation_space = self.task.observation_space
         self.action_space = self.task.action_space

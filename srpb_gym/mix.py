@@ -73,7 +73,8 @@ class SRPBMixEnv(SRPBNavEnv):
     sector of the observation means) is reported with a warning.
 
     ## Rewards
-    As :class:`~srpb_gym.env.SRPBNavEnv` (``reward``, ``reward_weights``), in every scenario.
+    As :class:`~srpb_gym.env.SRPBNavEnv` (``reward``, ``reward_weights``), in every scenario,
+    each scenario re-weighting the preset by its own ``reward`` section (:meth:`task_of`).
 
     ## Starting State
     Each ``reset`` first draws the scenario from the environment's generator (one uniform
@@ -177,6 +178,10 @@ class SRPBMixEnv(SRPBNavEnv):
     def scenario_of(self, name: str) -> Scenario:
         """The scenario ``name`` of the mixture (its name, or as given in ``scenarios``)."""
         return self._parts[self._index_of(name, "name")].scenario
+
+    def task_of(self, name: str) -> RobotTask:
+        """The robot task (observation, reward weights, metrics) of scenario ``name``."""
+        return self._parts[self._index_of(name, "name")].task
 
     def params_of(self, name: str) -> MetricParams:
         """The SRPB metric parameters of the episodes of scenario ``name``."""

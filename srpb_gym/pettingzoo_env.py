@@ -134,8 +134,10 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         settings = (observation, reward, reward_weights, collision, metrics, record_dir)
         tolerances = [_robot_spec(self.scenario, r, n_robots).goal_tolerance
                       for r in range(n_robots)]  # fmt: skip
-        self.tasks: list[RobotTask] = [build_task(self.sim, r, tolerance, *settings)
-                                       for r, tolerance in enumerate(tolerances)]  # fmt: skip
+        self.tasks: list[RobotTask] = [
+            build_task(self.sim, r, tolerance, *settings, self.scenario.reward)
+            for r, tolerance in enumerate(tolerances)
+        ]
         self.possible_agents = [f"robot_{r}" for r in range(n_robots)]
         self.agents: list[str] = []
         self._task = dict(zip(self.possible_agents, self.tasks))

@@ -24,7 +24,8 @@ and :mod:`srpb_gym.metrics.kernels`): summed over an episode, ``obs`` gives
 predicates use the reference formulas, while ``obs``, ``chc``, ``vsm`` and ``hsm`` keep
 the paper's per-step form (the reference tool's run-based ``m_obs``, unwrapped heading
 change and extra final aggregation entry have none). Weights come from a preset
-(``configs/reward/*.yaml``, packaged as ``srpb_gym.reward_presets``) overridden by name.
+(``configs/reward/*.yaml``, packaged as ``srpb_gym.reward_presets``), replaced by the
+scenario's weights for that preset (its ``reward`` section), then overridden by name.
 """
 
 from __future__ import annotations
@@ -99,10 +100,15 @@ def check_weights(
 
 
 def resolve_weights(
-    preset: str = "srpb", overrides: Mapping[str, Any] | None = None
-) -> NDArray[np.float64]:
-    """Weight vector over :data:`TERMS` (0 for terms the preset does not name)."""
-    weights = load_preset(preset) | check_weights(overrides or {})
+    preset: str = "srpb", overrides: Mapping[str, Any] | None = None,
+    scenario: Mapping[str, Mapping[str, float]] | None = None,
+) -> NDArray[np.float64]:  # fmt: skip
+    """Weight vector over :data:`TERMS` (0 for terms named nowhere): the preset's weights,
+    replaced by a scenario's weights for that preset (``scenario``: a
+    :attr:`~srpb_gym.scenarios.Scenario.reward` mapping), replaced by ``overrides``."""
+    weights = load_preset(preset)
+    weights |= check_weights((scenario or {}).get(preset) or {}, f"reward.{preset}")
+    weights |= check_weights(overrides or {})
     return np.array([weights.get(name, 0.0) for name in TERMS])
 
 

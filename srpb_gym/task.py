@@ -291,12 +291,14 @@ def build_task(
     collision: str = "terminate",
     metrics: Mapping[str, Any] | None = None,
     record_dir: str | None = None,
+    scenario_reward: Mapping[str, Mapping[str, float]] | None = None,
 ) -> RobotTask:
-    """A task from the plain-data arguments of an environment (see :class:`RobotTask`)."""
+    """A task from the plain-data arguments of an environment (see :class:`RobotTask`);
+    ``scenario_reward``: the scenario's weights by preset (its ``reward`` section)."""
     settings = MetricSettings.build(metrics, sim.robot_config, goal_tolerance)
-    return RobotTask(sim, robot, ObservationConfig.from_spec(observation),
-                     resolve_weights(reward, reward_weights), settings, collision,
-                     record_dir)  # fmt: skip
+    weights = resolve_weights(reward, reward_weights, scenario_reward)
+    return RobotTask(sim, robot, ObservationConfig.from_spec(observation), weights, settings,
+                     collision, record_dir)  # fmt: skip
 
 
 def _checked_record_dir(path: str | os.PathLike[str] | None) -> str | None:

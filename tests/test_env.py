@@ -334,7 +334,7 @@ def test_bad_reset_options():
 
 def test_collision_modes():
     for mode, expect_end in (("terminate", True), ("continue", False)):
-        env = make("SRPB-Corridor-v0", collision=mode)
+        env = make("SRPB-Corridor-v0", collision=mode, reward="task")
         env.reset(seed=0, options={"people": False, "start": (2.0, 1.1, math.pi / 2)})
         ended, hit = False, False
         for _ in range(60):

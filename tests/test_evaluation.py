@@ -17,7 +17,7 @@ import pytest
 
 from srpb_gym.cli import main
 from srpb_gym.evaluation import resolve_config, run_episode
-from srpb_gym.evaluation.stats import CSV_COLUMNS, cell
+from srpb_gym.evaluation.stats import CSV_COLUMNS, cell, latex_escape, number
 from srpb_gym.metrics import METRIC_NAMES, MetricParams, evaluate
 from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.planners import PLANNERS, GoToGoal
@@ -108,6 +108,10 @@ def test_tables_in_three_formats(run, capsys):
     assert table[0] == ["metric", "unit", *(f"go-to-goal {k}" for k in ("median", "q1", "q3", "n"))]
     assert [r[0] for r in table[5:]] == list(METRIC_NAMES)
     assert cell({"median": 12.3, "q1": 10.1, "q3": 14.0}) == "12.3 [10.1-14.0]"
+    # not 0, yet below the last decimal: said so, not printed as 0
+    assert cell({"median": 0.000149, "q1": 0.0, "q3": 0.0004}) == "<0.001 [0-<0.001]"
+    assert number(-0.0002) == ">-0.001" and number(0.0) == "0" and number(0.0012) == "0.001"
+    assert latex_escape("<0.001 [0-<0.001]") == r"\textless{}0.001 [0-\textless{}0.001]"
 
 
 def test_csv_row_equals_the_recorded_episode(run):

@@ -15,8 +15,8 @@ from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.reward import (
     PRESET_GAMMA,
     SHAPING_TERMS,
+    TERMS,
     RewardGameableWarning,
-    load_preset,
     preset_names,
     shaping_bound,
     step_bounds,
@@ -25,13 +25,17 @@ from srpb_gym.scenarios import load_scenario
 from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.training.config import load_entries, resolve
 
+SCENARIO_IDS_BY_NAME = {name: env_id for env_id, name in SCENARIO_IDS.items()}
+
 
 @pytest.mark.parametrize("preset", ["srpb", "task"])
 @pytest.mark.parametrize("scenario", sorted(SCENARIO_IDS.values()))
 def test_worst_case_shaping_costs_less_than_a_collision(preset: str, scenario: str) -> None:
     """The invariant: for a learner discounting as every training configuration does, the
     worst shaping of the rest of any episode costs less than a collision."""
-    weights = load_preset(preset)
+    env = gym.make(SCENARIO_IDS_BY_NAME[scenario], reward=preset)
+    weights = dict(zip(TERMS, env.unwrapped.task.reward_fn.weights.tolist()))
+    env.close()
     limit = load_scenario(scenario).time_limit
     gammas = {resolve(env_id).gamma for env_id in load_entries()[0] if env_id != "default"}
     assert gammas == {PRESET_GAMMA}
@@ -71,7 +75,7 @@ def test_per_step_values_stay_within_their_bounds(env_id: str) -> None:
     on a step without a contact."""
     env = gym.make(env_id)
     bounds = step_bounds(0.1, RobotConfig())
-    time_weight = load_preset("srpb")["time"]  # time has no srpb_step/ entry
+    time_weight = env.unwrapped.task.reward_fn.weights[TERMS.index("time")]  # no srpb_step/
     rng = np.random.default_rng(3)
     seen = dict.fromkeys(SHAPING_TERMS, 0.0)
     for episode in range(3):
@@ -146,11 +150,13 @@ def _discounted_return(env_id: str, planner: str | None, seed: int) -> float:
 
 @pytest.mark.parametrize("env_id", SCENARIO_IDS)
 def test_going_to_the_goal_pays_more_than_waiting(env_id: str) -> None:
-    """With the default `srpb` preset a learner that discounts by PRESET_GAMMA values
+    """With the `srpb` weights each scenario pays (the preset's, five times its social and
+    obs weights in corridor and fformation) a learner that discounts by PRESET_GAMMA values
     driving to the goal (`dwa`, which reaches it on these seeds) above standing still until
-    the time limit. Five times the social and obs weights break this among walkers
-    (docs/training.md): the penalties of personal-space intrusions the robot meets on its
-    way then cost more than its progress earns, and a trained agent learns to wait."""
+    the time limit. Five times the social and obs weights break this among crossing walkers
+    (crossing, crowd, doorway; docs/training.md): the penalties of personal-space
+    intrusions the robot meets on its way then cost more than its progress earns, and a
+    trained agent learns to wait."""
     seeds = (0, 1, 2)
     going = np.mean([_discounted_return(env_id, "dwa", s) for s in seeds])
     waiting = np.mean([_discounted_return(env_id, None, s) for s in seeds])

@@ -12,8 +12,11 @@ import srpb_gym  # noqa: F401
 from srpb_gym.models import card, model_names, model_path
 from srpb_gym.training.run import eval_env_ids
 from training.retrain_models import MODELS
+from training.ship import _trained_weights
 
-CARD_KEYS = {"name", "algo", "env", "reward", "seed", "hyperparams", "training", "test"}
+CARD_KEYS = {
+    "name", "algo", "env", "reward", "reward_weights", "seed", "hyperparams", "training", "test",
+}  # fmt: skip
 
 
 def test_every_shipped_model_can_be_retrained():
@@ -35,6 +38,9 @@ def test_model_loads_matches_spaces_and_acts(name):
     facts = card(name)
     assert set(facts) >= CARD_KEYS and facts["name"] == name
     assert (facts["env"], facts["reward"]) == MODELS[name]
+    # trained with the weights the environment pays now (a scenario re-weighted since, or a
+    # preset changed, needs the model retrained)
+    assert facts["reward_weights"] == _trained_weights(facts), name
     training = facts["training"]
     warm = training.get("warm_start") or {"wall_time_s": 0.0}
     assert training["steps"] > 0
@@ -183,8 +189,9 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
     assert seen == [run / "best" / "model.zip", run / "model.zip"]
 
 
-def _fake_run(run, best: bool, interrupted: bool = False):
-    """A run folder as srpb-gym train leaves it, with placeholder model files."""
+def _fake_run(run, best: bool, interrupted: bool = False, weights=None):
+    """A run folder as srpb-gym train leaves it, with placeholder model files (``weights``:
+    the reward weights its run.json records; ``None``: a run made before they were)."""
     (run / "best").mkdir(parents=True) if best else run.mkdir(parents=True)
     for folder in (run, run / "best") if best else (run,):
         (folder / "model.zip").write_text(f"model in {folder.name}")
@@ -193,9 +200,11 @@ def _fake_run(run, best: bool, interrupted: bool = False):
         "env: SRPB-Corridor-v0\nreward: srpb\nseed: 0\nhyperparams: {eval_episodes: 20}\n"
     )
     machine = {"cpu_count": 2, "processor": "x", "system": "y", "torch_threads": 1}
-    (run / "run.json").write_text(__import__("json").dumps({
-        "steps": 1000, "wall_time_s": 60.0, "machine": machine, "versions": {"srpb-gym": "0"},
-        "interrupted": interrupted}))  # fmt: skip
+    info = {"steps": 1000, "wall_time_s": 60.0, "machine": machine,
+            "versions": {"srpb-gym": "0"}, "interrupted": interrupted}  # fmt: skip
+    if weights is not None:
+        info["reward_weights"] = weights
+    (run / "run.json").write_text(__import__("json").dumps(info))
     (run / "command.txt").write_text("srpb-gym train --env SRPB-Corridor-v0\n")
 
 
@@ -218,6 +227,10 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     text = (shipped / "card.md").read_text()
     assert "final, chosen over the best periodic evaluation's checkpoint on 50" in text
     assert "stopped by hand" in text
+    # not recorded by the run: those the environment pays now, said so
+    assert card["reward_weights"]["corridor"]["psi"] == -5.0
+    assert "| reward weights | corridor: `progress` 1, `success` 10, `collision` -110, " in text
+    assert "does not record the reward weights" in capsys.readouterr().err
     with pytest.raises(ValueError, match="exclude each other"):
         ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, True, validate=50)
     # no best/: the final model, said so, and no validation
@@ -226,6 +239,15 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     assert card["checkpoint"] == "final" and card["validation"] is None
     assert "no best/" in capsys.readouterr().err
     assert "stopped by hand" not in (shipped / "card.md").read_text()
+    # recorded by the run: the card keeps them
+    recorded = {"corridor": {"progress": 1.0, "psi": -2.0}}
+    _fake_run(tmp_path / "recorded", best=False, weights=recorded)
+    card = ship.ship(tmp_path / "recorded", "ppo-corridor-srpb", 100, 10_000, False)
+    assert card["reward_weights"] == recorded
+    assert (
+        "| reward weights | corridor: `progress` 1, `psi` -2 |" in (shipped / "card.md").read_text()
+    )
+    assert "does not record" not in capsys.readouterr().err
 
 
 def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):

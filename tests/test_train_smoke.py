@@ -48,6 +48,8 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
     run = json.loads((out / "run.json").read_text())
     assert run["steps"] == 1024 and run["interrupted"] is False and "torch" in run["versions"]
     assert run["machine"]["cpu_count"] >= 1
+    task = {"progress": 1.0, "success": 10.0, "collision": -25.0, "time": -0.1}
+    assert run["reward_weights"] == {"corridor": task}  # the task preset: no scenario weights
     assert "--reward task" in (out / "command.txt").read_text()
     with open(out / "progress.csv", newline="") as f:
         header = next(csv.reader(f))
@@ -145,7 +147,8 @@ def test_wall_clock_limit_stops_as_finished(tmp_path):
         (["--env", "SRPB-Crowd-v0", "--seed", "-1"], "--seed: must be at least 0"),
         (
             ["--env", "SRPB-Crowd-v0", "--hyperparams", "gamma=0.999"],
-            "--hyperparams: gamma: with gamma 0.999 the shaping of the 'srpb' reward can cost",
+            "--hyperparams: gamma: with gamma 0.999 the shaping of the 'srpb' reward in "
+            "scenario 'crowd' can cost",
         ),
         (["--env", "SRPB-Mix-v0", "--hyperparams", "gamma=0.999"], "could learn to crash"),
         (

@@ -70,9 +70,10 @@ WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
 SOCIAL_WARM_START = ("pretrain_planner=social-dwa", "pretrain_episodes=150")
 LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
 #: corridor and fformation: both presets start from the same clone of a classical planner
-#: and train with the crowd's larger rollout, so that the presets are all that differs
-#: (fformation: a clone of social-dwa, which walks around the pair; from a clone of dwa,
-#: which walks between its members, neither preset left the O-space); crowd: the task
+#: and train with the crowd's larger rollout, so that the reward is all that differs (the
+#: preset, which these two scenarios re-weight for srpb; fformation: a clone of
+#: social-dwa, which walks around the pair; from a clone of dwa, which walks between its
+#: members, neither preset left the O-space); crowd: the task
 #: specialist learns with 1e-4 (3e-4 declined after its peak), the srpb specialist
 #: fine-tunes it with 5e-5 (better than 1e-4 on the validation seeds, 87 % against 86 %;
 #: from random weights the srpb preset learns to wait); the generalist starts from the

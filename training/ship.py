@@ -10,8 +10,9 @@ the ``srpb-gym eval`` harness on ``--episodes`` unseen seeds from ``--seed`` (10
 environments made with the run's env kwargs but those of training only, see
 :func:`srpb_gym.training.run.eval_setup`), and writes
 ``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
-training), ``card.json`` and ``card.md`` (environment id and version, reward preset,
-steps, wall time, machine, seed, command, hyperparameters and the test results).
+training), ``card.json`` and ``card.md`` (environment id and version, reward preset and
+the weights it paid in each scenario, steps, wall time, machine, seed, command,
+hyperparameters and the test results).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ import yaml
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.training.callbacks import eval_score, summarize_results
-from srpb_gym.training.run import eval_setup
+from srpb_gym.training.run import eval_setup, reward_weights
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100
@@ -63,6 +64,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         "| fact | value |", "| --- | --- |",
         f"| environment | `{card['env']}` |",
         f"| reward preset | `{card['reward']}` |",
+        f"| reward weights | {_weights_text(card['reward_weights'])} |",
         f"| steps | {t['steps']:,} |",
         f"| wall time | {_wall_time(t)} |",
         f"| initial weights | {_start(t)} |",
@@ -87,6 +89,37 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
               f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
               "1000000)."]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _trained_weights(config: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """The reward weights of each scenario that the environment of a run's (or a card's)
+    ``config`` pays now: its preset, re-weighted by the scenario and by its
+    ``reward_weights`` env kwarg."""
+    skip = ("record_dir", "render_mode")
+    kwargs = {k: v for k, v in config.get("env_kwargs", {}).items() if k not in skip}
+    return reward_weights(config["env"], config["reward"], kwargs)
+
+
+def _run_weights(run: Path, info: dict[str, Any], config: dict[str, Any]) -> Any:
+    """The reward weights the run trained with, as its ``run.json`` records them; a run
+    made before they were recorded gets those its environment pays now, said on stderr."""
+    if "reward_weights" in info:
+        return info["reward_weights"]
+    print(
+        f"{run / 'run.json'} does not record the reward weights (a run made before they "
+        "were): the card lists those its environment pays now",
+        file=sys.stderr,
+    )
+    return _trained_weights(config)
+
+
+def _weights_text(weights: dict[str, dict[str, float]]) -> str:
+    """The weights by scenario, scenarios with the same weights together."""
+    groups: dict[str, list[str]] = {}
+    for scenario, terms in weights.items():
+        text = ", ".join(f"`{term}` {value:g}" for term, value in terms.items())
+        groups.setdefault(text, []).append(scenario)
+    return "; ".join(f"{', '.join(names)}: {text}" for text, names in groups.items())
 
 
 def _validation(validation: dict[str, Any] | None) -> str:
@@ -246,6 +279,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     card = {
         "name": name, "algo": "PPO", "env": config["env"], "reward": config["reward"],
         "env_kwargs": config.get("env_kwargs", {}), "seed": config["seed"],
+        "reward_weights": _run_weights(run, info, config),
         "checkpoint": (f"best periodic evaluation (step {best_step(run)})"
                        if checkpoint != run else "final"),
         "validation": validation,

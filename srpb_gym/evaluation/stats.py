@@ -222,14 +222,17 @@ def _entry(
 
 # ---------------------------------------------------------------------------- tables
 def number(value: float | None) -> str:
-    """A compact number: 3 significant digits, at most 3 decimals, ``n/a`` for none."""
+    """A compact number: 3 significant digits, at most 3 decimals, ``n/a`` for none; a
+    value that is not 0 but rounds to it reads ``<0.001`` (``>-0.001``), never ``0``."""
     if value is None or not math.isfinite(value):
         return "n/a"
     if value == 0:
         return "0"
     decimals = min(3, max(0, 2 - math.floor(math.log10(abs(value)))))
     text = f"{value:.{decimals}f}"
-    return "0" if float(text) == 0 else text
+    if float(text) == 0:
+        return "<0.001" if value > 0 else ">-0.001"
+    return text
 
 
 def rate(value: float) -> str:
@@ -282,6 +285,7 @@ def format_markdown(title: str, header: list[str], rows: list[list[str]]) -> str
 def latex_escape(text: str) -> str:
     """``text`` for LaTeX: special characters escaped, ``^2`` as a superscript."""
     out = "".join("\\" + ch if ch in "&%$#_{}" else ch for ch in text)
+    out = out.replace("<", "\\textless{}").replace(">", "\\textgreater{}")
     return out.replace("^2", "$^2$").replace("~", "\\textasciitilde{}")
 
 

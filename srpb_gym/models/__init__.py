@@ -2,10 +2,11 @@
 
 Each model is a folder ``srpb_gym/models/<name>/`` holding ``model.zip`` (a
 stable-baselines3 PPO model), ``vecnormalize.pkl`` (its observation statistics),
-``card.md`` (its model card: environment id and version, reward preset, steps, wall time,
-machine, seed, command, results) and ``card.json`` (the same facts as data). Names follow
-``ppo-<scenario>-<preset>``, e.g. ``ppo-corridor-srpb`` (``ppo-mix-srpb`` for a model
-trained on ``SRPB-Mix-v0``). :func:`model_names` lists those shipped.
+``card.md`` (its model card: environment id and version, reward preset and the weights
+of each scenario, steps, wall time, machine, seed, command, results) and ``card.json``
+(the same facts as data). Names follow ``ppo-<scenario>-<preset>``, e.g.
+``ppo-corridor-srpb`` (``ppo-mix-srpb`` for a model trained on ``SRPB-Mix-v0``).
+:func:`model_names` lists those shipped.
 
 ``srpb-gym eval --policy ppo-corridor-srpb`` takes a short name wherever it takes a model
 file; ``srpb-gym models`` lists them. Loading a model needs the ``train`` extra

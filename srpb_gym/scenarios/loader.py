@@ -52,7 +52,7 @@ from srpb_gym.scenarios.yaml_io import read_file, read_yaml
 SUFFIXES = (".yaml", ".yml")
 TOP_KEYS = (
     "name", "description", "time_limit", "bounds", "enclose", "walls", "obstacles", "robot",
-    "robots", "people", "formations", "sensors",
+    "robots", "people", "formations", "sensors", "reward",
 )  # fmt: skip
 COMMON_PEOPLE_KEYS = (
     "count", "start_delay", "loop", "group_size", "preferred_speed", "radius", "relaxation_time",
@@ -163,6 +163,7 @@ def parse_scenario(
         people=tuple(_people(r, top.get("people", []))),
         formations=tuple(_formations(r, top.get("formations", []))),
         sensors=_sensors(r, top.get("sensors", {})),
+        reward=_reward(r, top.get("reward", {})),
         robot_radius=robot_radius,
         source=file,
         lines=lines,
@@ -362,3 +363,16 @@ def _sensors(r: Reader, value: Any) -> SensorSpecs:
             )
         raw[name] = item
     return SensorSpecs(**raw)
+
+
+def _reward(r: Reader, value: Any) -> dict[str, dict[str, float]]:
+    # srpb_gym.reward reads its presets through this package: imported when needed
+    from srpb_gym.reward import TERMS, preset_names
+
+    presets = r.mapping(value if value is not None else {}, "reward", preset_names())
+    out = {}
+    for preset, weights in presets.items():
+        key = f"reward.{preset}"
+        spec = r.mapping(weights if weights is not None else {}, key, TERMS)
+        out[preset] = {term: r.number(w, f"{key}.{term}") for term, w in spec.items()}
+    return out

@@ -154,6 +154,9 @@ class Scenario:
     polygons (each an (N, 2) array of vertices) whose edges are in ``walls``.
     ``robot``: the start and goal of the single robot; ``robots``: the start and goal of
     robot i when several robots share the world (empty: one robot only).
+    ``reward``: the scenario's weights over the packaged reward presets, by preset name
+    (``{"srpb": {"psi": -5.0, ...}}``): an environment on this scenario with that preset
+    starts from the preset's weights with these replacing theirs.
     ``robot_radius``: the radius [m] of the robots the scenario is validated and sampled for
     (their clearance from walls, the reachability of their goals).
     ``source`` and ``lines`` locate keys in the file for error messages;
@@ -173,6 +176,7 @@ class Scenario:
     formations: tuple[FormationSpec, ...] = ()
     robots: tuple[RobotSpec, ...] = ()
     sensors: SensorSpecs = field(default_factory=SensorSpecs)
+    reward: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     robot_radius: float = DEFAULT_ROBOT_RADIUS  # m
     source: str | None = None
     lines: Mapping[str, int] = field(default_factory=dict, repr=False)

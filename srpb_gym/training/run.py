@@ -11,7 +11,7 @@ the callbacks of :mod:`srpb_gym.training.callbacks` and writes into the run fold
 | ``best/`` | the checkpoint with the best periodic evaluation |
 | ``config.yaml`` | every resolved setting: env id, preset, env kwargs, seed, hyperparameters |
 | ``command.txt`` | the command line |
-| ``run.json`` | seed, versions, machine, steps done, wall time, interrupted or not |
+| ``run.json`` | reward weights of each scenario, seed, versions, machine, steps, wall time |
 | ``progress.csv``, ``tb/`` | the SB3 logger (CSV and TensorBoard) |
 | ``evaluations.csv``, ``eval/`` | the periodic evaluations (``srpb-gym eval`` run folders) |
 
@@ -144,9 +144,10 @@ def make_vec_env(env_id: str, config: TrainConfig, env_kwargs: Mapping[str, Any]
 
 
 def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
-                   gamma: float = PRESET_GAMMA) -> None:  # fmt: skip
+                   gamma: float = PRESET_GAMMA) -> dict[str, dict[str, float]]:  # fmt: skip
     """Refuse an unknown id or preset, env kwargs the environment refuses and a reward that
-    the discount ``gamma`` makes gameable (a collision worth more than going on), now."""
+    the discount ``gamma`` makes gameable (a collision worth more than going on), now.
+    Returns the reward weights of each scenario, as :func:`reward_weights`."""
     if env_id not in gym.registry or not env_id.startswith("SRPB-"):
         ids = sorted(k for k in gym.registry if k.startswith("SRPB-"))
         raise InputError(f"unknown environment {env_id!r}; choose one of: {', '.join(ids)}",
@@ -159,23 +160,52 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
         raise env_kwargs_error(env_id, exc) from None
     try:
         base = env.unwrapped
+        weights_of = _weights_of(base)
         if base.task.collision_mode != "terminate":
-            return
-        names = getattr(base, "scenarios", None)
-        limits = ([base.scenario_of(n).time_limit for n in names] if names is not None
-                  else [base.scenario.time_limit])  # fmt: skip
-        weights = base.task.reward_fn.weights
-        penalty = -float(weights[TERMS.index("collision")])
-        bound = max(shaping_bound(weights, limit, base.sim.config.control_dt,
-                                  base.sim.robot_config, gamma) for limit in limits)  # fmt: skip
-        if bound > 0.0 and bound >= penalty:
-            raise InputError(
-                f"with gamma {gamma:g} the shaping of the {preset!r} reward can cost up to "
-                f"{bound:.3g} (discounted) from any state, not less than the collision "
-                f"penalty {penalty:g}: a policy could learn to crash. Lower gamma or the "
-                "shaping weights, or raise 'collision'", key="--hyperparams: gamma")  # fmt: skip
+            return weights_of
+        for scenario, task in _scenario_tasks(base):  # a mixture's, each with its weights
+            weights = task.reward_fn.weights
+            penalty = -float(weights[TERMS.index("collision")])
+            bound = shaping_bound(weights, scenario.time_limit, base.sim.config.control_dt,
+                                  base.sim.robot_config, gamma)  # fmt: skip
+            if bound > 0.0 and bound >= penalty:
+                raise InputError(
+                    f"with gamma {gamma:g} the shaping of the {preset!r} reward in scenario "
+                    f"{scenario.name!r} can cost up to {bound:.3g} (discounted) from any "
+                    f"state, not less than the collision penalty {penalty:g}: a policy could "
+                    "learn to crash. Lower gamma or the shaping weights, or raise "
+                    "'collision'", key="--hyperparams: gamma")  # fmt: skip
+        return weights_of
     finally:
         env.close()
+
+
+def _scenario_tasks(base: Any) -> list[tuple[Any, Any]]:
+    """(scenario, robot task) of each scenario of an environment (one unless a mixture)."""
+    names = getattr(base, "scenarios", None)
+    if names is None:
+        return [(base.scenario, base.task)]
+    return [(base.scenario_of(n), base.task_of(n)) for n in names]
+
+
+def reward_weights(
+    env_id: str, preset: str, env_kwargs: Mapping[str, Any] | None = None
+) -> dict[str, dict[str, float]]:
+    """The reward weights (non-zero ones, by term) that ``env_id`` with ``preset`` and
+    ``env_kwargs`` pays in each of its scenarios, by scenario name: the preset's, re-weighted
+    by the scenario's ``reward`` section and by ``reward_weights`` (a ``reward`` key in
+    ``env_kwargs``, as in a run's ``config.yaml``, is ``preset``'s)."""
+    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "reward"}
+    env = gym.make(env_id, reward=preset, **kwargs)
+    try:
+        return _weights_of(env.unwrapped)
+    finally:
+        env.close()
+
+
+def _weights_of(base: Any) -> dict[str, dict[str, float]]:
+    return {scenario.name: {t: float(w) for t, w in zip(TERMS, task.reward_fn.weights) if w}
+            for scenario, task in _scenario_tasks(base)}  # fmt: skip
 
 
 def train(
@@ -207,7 +237,7 @@ def train(
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
-    check_env_args(env_id, preset, env_kwargs, config.gamma)
+    weights = check_env_args(env_id, preset, env_kwargs, config.gamma)
     eval_ids, eval_kwargs = eval_setup(env_id, env_kwargs) if config.eval_freq > 0 else ([], {})
     if init is not None and config.pretrain_planner:
         raise InputError("start from a trained model or from a planner's demonstrations "
@@ -220,7 +250,7 @@ def train(
         torch.set_num_threads(config.torch_threads)
     out = check_out_dir(out or default_out(env_id, preset))
     os.makedirs(out, exist_ok=True)
-    _write_run_files(out, env_id, preset, kwargs, seed, config, argv)
+    _write_run_files(out, env_id, preset, kwargs, seed, config, argv, weights)
 
     venv = make_vec_env(env_id, config, kwargs, seed)
     bar: ProgressCallback | None = None
@@ -354,14 +384,16 @@ def _stop_on_sigterm() -> Any:
 
 
 def _write_run_files(out: str, env_id: str, preset: str, env_kwargs: Mapping[str, Any],
-                     seed: int, config: TrainConfig, argv: Sequence[str]) -> None:  # fmt: skip
+                     seed: int, config: TrainConfig, argv: Sequence[str],
+                     weights: Mapping[str, Mapping[str, float]]) -> None:  # fmt: skip
     doc = {"algo": "PPO", "env": env_id, "reward": preset, "env_kwargs": dict(env_kwargs),
            "seed": seed, "hyperparams": config.as_dict()}  # fmt: skip
     with open(os.path.join(out, "config.yaml"), "w", encoding="utf-8") as f:
         yaml.safe_dump(doc, f, sort_keys=False)
     with open(os.path.join(out, "command.txt"), "w", encoding="utf-8") as f:
         f.write(shlex.join(["srpb-gym", *argv]) + "\n")
-    run = {"env": env_id, "reward": preset, "seed": seed, "versions": versions(),
+    run = {"env": env_id, "reward": preset, "reward_weights": weights, "seed": seed,
+           "versions": versions(),
            "machine": machine(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}  # fmt: skip
     with open(os.path.join(out, "run.json"), "w", encoding="utf-8") as f:
         json.dump(run, f, indent=2)
