@@ -82,7 +82,8 @@ def test_retraining_commands_follow_each_model_recipe():
     warm = commands("ppo-mix-srpb", 60, 1)[0]
     hyper = warm[warm.index("--hyperparams") + 1 :]
     assert "pretrain_planner=dwa" in hyper and "torch_threads=1" in hyper
-    assert warm[warm.index("--env-kwargs") + 1] == "weights=[1, 1, 3, 2, 3]"
+    kwargs = warm[warm.index("--env-kwargs") + 1 : warm.index("--env-kwargs") + 3]
+    assert kwargs[0] == "weights=[1, 1, 3, 2, 3]" and kwargs[1].startswith("reward_weights={obs")
     assert "--env-kwargs" not in plain[0]
     start, fine, ship = commands("ppo-crowd-srpb", 60, 0)
     assert start[start.index("--reward") + 1] == "task"
