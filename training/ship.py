@@ -95,9 +95,7 @@ def _trained_weights(config: dict[str, Any]) -> dict[str, dict[str, float]]:
     """The reward weights of each scenario that the environment of a run's (or a card's)
     ``config`` pays now: its preset, re-weighted by the scenario and by its
     ``reward_weights`` env kwarg."""
-    skip = ("record_dir", "render_mode")
-    kwargs = {k: v for k, v in config.get("env_kwargs", {}).items() if k not in skip}
-    return reward_weights(config["env"], config["reward"], kwargs)
+    return reward_weights(config["env"], config["reward"], config.get("env_kwargs"))
 
 
 def _run_weights(run: Path, info: dict[str, Any], config: dict[str, Any]) -> Any:

@@ -193,9 +193,11 @@ def reward_weights(
 ) -> dict[str, dict[str, float]]:
     """The reward weights (non-zero ones, by term) that ``env_id`` with ``preset`` and
     ``env_kwargs`` pays in each of its scenarios, by scenario name: the preset's, re-weighted
-    by the scenario's ``reward`` section and by ``reward_weights`` (a ``reward`` key in
-    ``env_kwargs``, as in a run's ``config.yaml``, is ``preset``'s)."""
-    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k != "reward"}
+    by the scenario's ``reward`` section and by ``reward_weights``. ``env_kwargs`` may be
+    a run's (its ``config.yaml``): its ``reward`` is ``preset``, and records and rendering,
+    which do not change the reward, are left out."""
+    skip = ("reward", "record_dir", "render_mode")
+    kwargs = {k: v for k, v in (env_kwargs or {}).items() if k not in skip}
     env = gym.make(env_id, reward=preset, **kwargs)
     try:
         return _weights_of(env.unwrapped)
@@ -393,8 +395,8 @@ def _write_run_files(out: str, env_id: str, preset: str, env_kwargs: Mapping[str
     with open(os.path.join(out, "command.txt"), "w", encoding="utf-8") as f:
         f.write(shlex.join(["srpb-gym", *argv]) + "\n")
     run = {"env": env_id, "reward": preset, "reward_weights": weights, "seed": seed,
-           "versions": versions(),
-           "machine": machine(), "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}  # fmt: skip
+           "versions": versions(), "machine": machine(),
+           "started": time.strftime("%Y-%m-%dT%H:%M:%S%z")}  # fmt: skip
     with open(os.path.join(out, "run.json"), "w", encoding="utf-8") as f:
         json.dump(run, f, indent=2)
 
