@@ -84,8 +84,10 @@ class SRPBNavEnv(gym.Env):
 
     ## Rewards
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,
-    ``success``, ``collision``, ``time`` and SRPB per-step terms ``obs``, ``vsm``, ``hsm``,
-    ``osc``, ``bwd``, ``iprot``, ``chc``, ``psi``, ``fsi``, ``dir``. ``reward="srpb"``
+    ``success``, ``collision``, ``time``, ``approach`` (potential-based shaping of the last
+    1.5 m towards the goal's position and heading, in no preset) and SRPB per-step terms
+    ``obs``, ``vsm``, ``hsm``, ``osc``, ``bwd``, ``iprot``, ``chc``, ``psi``, ``fsi``,
+    ``dir``. ``reward="srpb"``
     (default) or ``"task"`` picks a preset, which a scenario's ``reward`` section may
     re-weight (``corridor`` and ``fformation`` pay the ``srpb`` preset's ``obs``, ``psi``,
     ``fsi`` and ``dir`` five times over, with ``collision`` -110; ``envs/README.md``);
@@ -154,7 +156,8 @@ class SRPBNavEnv(gym.Env):
       -25, shaping bounded) and the fformation, crowd and doorway scenarios were reworked
       so that every SRPB metric is exercised, and corridor and fformation were given
       five times the ``srpb`` social and obstacle weights: returns and metrics of
-      earlier v0 builds are not comparable with these.
+      earlier v0 builds are not comparable with these. The ``approach`` term was added
+      with weight 0 in both presets (their rewards unchanged).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

@@ -8,12 +8,25 @@ Term values of step k (from sample k to sample k+1, dt = t_{k+1} - t_k), before 
 | ``success`` | 1 on reaching the goal with no collision in the episode | - |
 | ``collision`` | 1 if the robot touched a wall, a person or a robot | - |
 | ``time`` | dt | s |
+| ``approach`` | approach error at k minus approach error at k+1 (below) | m |
 | ``obs`` | dt if the obstacle distance at k < ``safety_distance`` | s |
 | ``vsm`` | hypot(dvx, dvy) / dt | m/s^2 |
 | ``hsm`` | abs(d omega) / dt | rad/s^2 |
 | ``osc``, ``bwd``, ``iprot`` | dt if oscillating / moving backward / rotating in place at k | s |
 | ``chc`` | abs(wrap(yaw_{k+1} - yaw_k)) | rad |
 | ``psi``, ``fsi``, ``dir`` | dt x the largest per-person (per-group) value at k | s |
+
+``approach`` is potential-based shaping of the last metres (Ng et al. 1999), in no preset: a
+learner that must reach the goal's position and heading within their tolerances (0.2 m,
+0.2 rad) with a differential drive, and stops beside the goal facing its heading, gains
+nothing from ``progress`` by turning towards the goal's heading line, driving onto it and
+turning back. The approach error of a sample is (e + :data:`APPROACH_YAW` x abs(wrap(goal
+yaw - yaw))) x max(0, 1 - d / :data:`APPROACH_RADIUS`): e the robot's distance from the
+line through the goal along its heading, d its distance to the goal. It is 0 farther than
+:data:`APPROACH_RADIUS` from the goal and on the goal with its heading, and at most
+pi x :data:`APPROACH_YAW` (about 1.57 m). Summed over an episode the term telescopes to
+the first sample's error minus the last's, so it is bounded by the geometry
+(:data:`EVENT_TERMS`), within +-1.57 whatever the episode's length.
 
 Each SRPB term is the step's contribution to its metric in the metric's own formula and
 parameters, computed by the metric code (:func:`srpb_gym.metrics.episode.entity_values`
@@ -49,7 +62,7 @@ from srpb_gym.metrics.params import MetricParams
 from srpb_gym.metrics.record import EpisodeRecord
 from srpb_gym.scenarios.yaml_io import load_file
 
-TASK_TERMS: tuple[str, ...] = ("progress", "success", "collision", "time")
+TASK_TERMS: tuple[str, ...] = ("progress", "success", "collision", "time", "approach")
 SRPB_TERMS: tuple[str, ...] = (
     "obs", "vsm", "hsm", "osc", "bwd", "iprot", "chc", "psi", "fsi", "dir",
 )  # fmt: skip
@@ -113,9 +126,9 @@ def resolve_weights(
 
 
 #: terms whose sum over an episode is bounded by the geometry, not by its length:
-#: ``progress`` telescopes to the start distance minus the end distance, ``success`` and
-#: ``collision`` happen once
-EVENT_TERMS: tuple[str, ...] = ("progress", "success", "collision")
+#: ``progress`` telescopes to the start distance minus the end distance, ``approach`` to
+#: the start's approach error minus the end's, ``success`` and ``collision`` happen once
+EVENT_TERMS: tuple[str, ...] = ("progress", "success", "collision", "approach")
 #: every other term: paid per step for as long as the episode runs
 SHAPING_TERMS: tuple[str, ...] = tuple(t for t in TERMS if t not in EVENT_TERMS)
 
@@ -254,10 +267,31 @@ class RewardFunction:
         out[_S_FSI] = fsi.max()
 
 
-#: per-sample values: t, obstacle distance, osc, bwd, iprot, vx, vy, omega, yaw, and the
+#: per-sample values: t, obstacle distance, osc, bwd, iprot, vx, vy, omega, yaw, the
 #: largest psi, fsi and dir over the people (groups) of the sample (0 when nobody is there)
-SAMPLE = 12
+#: and the approach error
+SAMPLE = 13
 _S_FSI = 10
+
+
+#: m, the approach error is 0 this far from the goal and beyond (``approach``)
+APPROACH_RADIUS = 1.5
+#: m/rad, the weight of the heading error against the distance from the goal's heading line
+APPROACH_YAW = 0.5
+
+
+@njit(cache=True, error_model="numpy")
+def approach_error(x: float, y: float, yaw: float, gx: float, gy: float,
+                   gyaw: float) -> float:  # fmt: skip
+    """The approach error [m] of a robot pose (x, y, yaw) for the goal (gx, gy, gyaw):
+    (distance from the goal's heading line + :data:`APPROACH_YAW` x heading error) x
+    max(0, 1 - goal distance / :data:`APPROACH_RADIUS`)."""
+    dx, dy = x - gx, y - gy
+    near = 1.0 - math.hypot(dx, dy) / APPROACH_RADIUS
+    if near <= 0.0:
+        return 0.0
+    off_line = abs(-dx * math.sin(gyaw) + dy * math.cos(gyaw))
+    return (off_line + APPROACH_YAW * abs(wrap_angle(gyaw - yaw))) * near
 
 
 @njit(cache=True, error_model="numpy")
@@ -280,6 +314,7 @@ def _sample_terms(row, people, prm, reference, out):  # pragma: no cover - compi
     out[9] = psi_max if psi_max > -math.inf else 0.0  # nobody (with a value) around: 0
     out[10] = 0.0
     out[11] = dir_max if dir_max > -math.inf else 0.0
+    out[12] = approach_error(x, y, yaw, row[7], row[8], row[9])
 
 
 @njit(cache=True, error_model="numpy")
@@ -314,13 +349,14 @@ def _step_terms(prev, new, progress, success, collision, safety, weights, v, wei
     writes ``v`` and ``weighted``, returns the reward."""  # pragma: no cover - compiled
     dt = new[0] - prev[0]
     v[0], v[1], v[2], v[3] = progress, success, collision, dt
-    v[4] = dt if prev[1] < safety else 0.0
+    v[4] = prev[12] - new[12]
+    v[5] = dt if prev[1] < safety else 0.0
     moving = dt > 0  # a zero-length step adds nothing (paper semantics)
-    v[5] = math.hypot(abs(new[5] - prev[5]) / dt, abs(new[6] - prev[6]) / dt) if moving else 0.0
-    v[6] = abs(new[7] - prev[7]) / dt if moving else 0.0
-    v[7], v[8], v[9] = dt * prev[2], dt * prev[3], dt * prev[4]
-    v[10] = abs(wrap_angle(new[8] - prev[8]))
-    v[11], v[12], v[13] = dt * prev[9], dt * prev[10], dt * prev[11]
+    v[6] = math.hypot(abs(new[5] - prev[5]) / dt, abs(new[6] - prev[6]) / dt) if moving else 0.0
+    v[7] = abs(new[7] - prev[7]) / dt if moving else 0.0
+    v[8], v[9], v[10] = dt * prev[2], dt * prev[3], dt * prev[4]
+    v[11] = abs(wrap_angle(new[8] - prev[8]))
+    v[12], v[13], v[14] = dt * prev[9], dt * prev[10], dt * prev[11]
     total = 0.0
     for k in range(v.shape[0]):
         weighted[k] = v[k] * weights[k]

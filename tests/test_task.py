@@ -15,7 +15,15 @@ from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.metrics.record import R
 from srpb_gym.observation import ObservationBuilder, ObservationConfig
 from srpb_gym.perception.tracker import Tracks
-from srpb_gym.reward import SRPB_TERMS, TASK_TERMS, TERMS
+from srpb_gym.reward import (
+    EVENT_TERMS,
+    SHAPING_TERMS,
+    SRPB_TERMS,
+    TASK_TERMS,
+    TERMS,
+    approach_error,
+    resolve_weights,
+)
 from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.task import MetricSettings, robot_max_speed
 
@@ -144,6 +152,7 @@ def test_every_reward_term_by_hand():
             "success": float(info["is_success"]),
             "collision": float(info["collision"]),
             "time": dt,
+            "approach": hand_approach_error(a, R) - hand_approach_error(b, R),
             "obs": dt * (a[R["obstacle_dist"]] < p.safety_distance),
             "vsm": math.hypot(b[R["vx"]] - vx, b[R["vy"]] - vy) / dt,
             "hsm": abs(b[R["omega"]] - w) / dt,
@@ -163,9 +172,65 @@ def test_every_reward_term_by_hand():
             assert info[f"srpb_step/{term}"] == pytest.approx(expected[term], rel=1e-9, abs=1e-12)
         assert rewards[k] == pytest.approx(sum(info[f"reward_{t}"] for t in TERMS), abs=1e-12)
     seen = {t for info in infos for t in TERMS if info[f"reward_{t}"] != 0.0}
-    # the trajectory exercised every term but those of the episode's end and the O-space
-    assert seen >= set(TERMS) - {"success", "collision", "fsi"}, set(TERMS) - seen
+    # the trajectory exercised every term but those of the episode's end, the O-space and
+    # the last metres (test_approach_term_by_hand)
+    assert seen >= set(TERMS) - {"success", "collision", "fsi", "approach"}, set(TERMS) - seen
     assert set(TASK_TERMS) < set(TERMS)
+
+
+def hand_approach_error(row: np.ndarray, R: dict[str, int]) -> float:
+    """The approach error of one robot row: (distance from the goal's heading line + 0.5
+    m/rad x heading error) x (1 - goal distance / 1.5 m), 0 from 1.5 m on."""
+    gx, gy, gyaw = row[R["goal_x"]], row[R["goal_y"]], row[R["goal_yaw"]]
+    dx, dy = row[R["x"]] - gx, row[R["y"]] - gy
+    d = math.hypot(dx, dy)
+    if d >= 1.5:
+        return 0.0
+    line = abs(dy * math.cos(gyaw) - dx * math.sin(gyaw))
+    heading = abs(math.remainder(gyaw - row[R["yaw"]], 2 * math.pi))
+    return (line + 0.5 * heading) * (1.0 - d / 1.5)
+
+
+def test_approach_error_by_hand():
+    assert approach_error(0.3, 0.0, 0.0, 0.0, 0.0, 0.0) == 0.0  # on the line, heading kept
+    assert approach_error(0.0, 0.3, 0.2, 0.0, 0.0, 0.0) == pytest.approx((0.3 + 0.1) * 0.8)
+    # the goal heading +y: the line is x = 1; 0.6 m off it, heading off by pi/2
+    assert approach_error(1.6, 2.0, 0.0, 1.0, 2.0, math.pi / 2) == pytest.approx(
+        (0.6 + 0.5 * math.pi / 2) * (1 - 0.6 / 1.5)
+    )
+    assert approach_error(3.0, 0.1, 1.0, 0.0, 0.0, 0.0) == 0.0  # beyond 1.5 m
+    assert approach_error(1.5, 0.0, 3.0, 0.0, 0.0, 0.0) == 0.0
+
+
+def test_approach_term_by_hand():
+    """Near the goal the approach term pays the fall of the approach error, step by step;
+    over the episode it telescopes to the first sample's error minus the last's."""
+    env = gym.make("SRPB-Corridor-v0", reward_weights={"approach": 3.0}, max_episode_steps=40)
+    env.reset(seed=0)
+    gx, gy, gyaw = env.unwrapped.knowledge().goal
+    c, s = math.cos(gyaw), math.sin(gyaw)
+    start = (gx - 0.7 * c - 0.4 * s, gy - 0.7 * s + 0.4 * c, gyaw + 0.6)  # behind, beside
+    env.reset(seed=0, options={"start": start, "people": False})
+    terms = []
+    for k in range(40):
+        action = np.array([0.6, -0.5 if k < 8 else 0.2], np.float32)
+        _, _, terminated, truncated, info = env.step(action)
+        terms.append(info["reward_approach"])
+        if terminated or truncated:
+            break
+    robot = env.unwrapped.task.record.robot
+    errors = [hand_approach_error(row, R) for row in robot]
+    assert errors[0] > 0.3
+    for k, term in enumerate(terms):
+        assert term == pytest.approx(3.0 * (errors[k] - errors[k + 1]), abs=1e-12), k
+    assert sum(terms) == pytest.approx(3.0 * (errors[0] - errors[len(terms)]), abs=1e-9)
+    assert sum(1 for t in terms if t > 0) > 5 and any(t < 0 for t in terms)
+
+
+def test_approach_is_an_event_term_in_no_preset():
+    assert "approach" in EVENT_TERMS and "approach" not in SHAPING_TERMS
+    for preset in ("task", "srpb"):
+        assert resolve_weights(preset)[TERMS.index("approach")] == 0.0
 
 
 # ------------------------------------------------------------------ observation
