@@ -198,6 +198,10 @@ def test_approach_error_by_hand():
     assert approach_error(1.6, 2.0, 0.0, 1.0, 2.0, math.pi / 2) == pytest.approx(
         (0.6 + 0.5 * math.pi / 2) * (1 - 0.6 / 1.5)
     )
+    # headings across the wrap: 3.1 against -3.1 rad are 2 pi - 6.2 apart, not 6.2
+    assert approach_error(0.5, 0.0, -3.1, 0.0, 0.0, 3.1) == pytest.approx(
+        (0.5 * math.sin(3.1) + 0.5 * (2 * math.pi - 6.2)) * (1 - 0.5 / 1.5)
+    )
     assert approach_error(3.0, 0.1, 1.0, 0.0, 0.0, 0.0) == 0.0  # beyond 1.5 m
     assert approach_error(1.5, 0.0, 3.0, 0.0, 0.0, 0.0) == 0.0
 
