@@ -169,6 +169,31 @@ def test_bad_arguments_exit_2(args, expected, tmp_path, capsys):
     assert not (tmp_path / "run").exists()
 
 
+def test_an_id_registered_elsewhere_is_refused_before_training(tmp_path, capsys):
+    """The periodic evaluation runs packaged ids and scenario files: training on another
+    registered SRPB id stops before the warm start, with the way out; without
+    evaluations it trains."""
+    import gymnasium as gym
+
+    gym.register("SRPB-UserRoom-v0", entry_point="srpb_gym.env:SRPBNavEnv",
+                 kwargs={"scenario": "corridor"}, max_episode_steps=50)  # fmt: skip
+    try:
+        args = ["train", "--env", "SRPB-UserRoom-v0", "--hyperparams",
+                "pretrain_planner=go-to-goal"]  # fmt: skip
+        assert main([*args, "--out", str(tmp_path / "run")]) == 2
+        err = capsys.readouterr().err
+        assert "--env: SRPB-UserRoom-v0 is not a packaged environment" in err, err
+        assert "eval_freq=0" in err and "warm start" not in err, err
+        assert not (tmp_path / "run").exists()
+        small = {"n_timesteps": 64, "n_steps": 64, "batch_size": 64, "n_envs": 1,
+                 "n_epochs": 1, "net_arch": [8], "eval_freq": 0}  # fmt: skip
+        result = train("SRPB-UserRoom-v0", resolve("SRPB-UserRoom-v0", small),
+                       out=str(tmp_path / "ok"), progress=False, log=lambda line: None)  # fmt: skip
+        assert result.steps >= 64 and (tmp_path / "ok" / "model.zip").is_file()
+    finally:
+        del gym.registry["SRPB-UserRoom-v0"]
+
+
 def test_warm_start_from_a_planner_is_recorded(tmp_path):
     overrides = {"n_timesteps": 256, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
                  "net_arch": [32, 32], "eval_freq": 0, "pretrain_planner": "go-to-goal",

@@ -210,6 +210,21 @@ def _weights_of(base: Any) -> dict[str, dict[str, float]]:
             for scenario, task in _scenario_tasks(base)}  # fmt: skip
 
 
+def check_eval_targets(env_id: str, eval_ids: Sequence[str]) -> None:
+    """Refuse, before any training, periodic evaluations that the evaluation harness
+    cannot run: it runs the packaged ids and scenario files, not an id registered
+    elsewhere."""
+    from srpb_gym.evaluation.spec import ENV_IDS
+
+    for target in eval_ids:
+        if target not in ENV_IDS and not os.path.isfile(target):
+            raise InputError(
+                f"{env_id} is not a packaged environment, and the periodic evaluation runs "
+                f"those ({', '.join(ENV_IDS)}) and scenario files only: train "
+                "SRPB-Custom-v0 with --env-kwargs scenario=FILE, or set "
+                "--hyperparams eval_freq=0", key="--env")  # fmt: skip
+
+
 def train(
     env_id: str,
     config: TrainConfig,
@@ -241,6 +256,7 @@ def train(
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
     weights = check_env_args(env_id, preset, env_kwargs, config.gamma)
     eval_ids, eval_kwargs = eval_setup(env_id, env_kwargs) if config.eval_freq > 0 else ([], {})
+    check_eval_targets(env_id, eval_ids)
     if init is not None and config.pretrain_planner:
         raise InputError("start from a trained model or from a planner's demonstrations "
                          "(pretrain_planner), not both", key="--init")  # fmt: skip
