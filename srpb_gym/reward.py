@@ -23,14 +23,14 @@ and stops beside the goal facing its heading, gains nothing from ``progress`` by
 towards the goal's heading line, driving onto it and turning back. The approach error of
 a sample is (e + :data:`APPROACH_YAW` x abs(wrap(goal yaw - yaw))) x max(0, 1 - d /
 :data:`APPROACH_RADIUS`): e the robot's distance from the line through the goal along its
-heading, d its distance to the goal. It is 0 farther than
-:data:`APPROACH_RADIUS` from the goal and on the goal's heading line facing the goal's
-heading (before or past the goal: ``progress`` tells them apart), and at most
-pi x :data:`APPROACH_YAW` (about 1.57 m). Summed over an episode the term telescopes to
-the first sample's error minus the last's, so it is bounded by the geometry
-(:data:`EVENT_TERMS`), within +-1.57 whatever the episode's length; in an episode that
-starts farther than :data:`APPROACH_RADIUS` from its goal it is minus the last sample's
-error (a manoeuvre's first turn costs, and the drive onto the line pays it back, net).
+heading, d its distance to the goal. It is 0 farther than :data:`APPROACH_RADIUS` from
+the goal and on the goal's heading line facing the goal's heading (before or past the
+goal: ``progress`` tells them apart), and at most pi x :data:`APPROACH_YAW` (about
+1.57 m). Summed over an episode the term telescopes to the first sample's error minus the
+last's, so it is bounded by the geometry (:data:`EVENT_TERMS`), within +-1.57 whatever
+the episode's length; in an episode that starts farther than :data:`APPROACH_RADIUS`
+from its goal it is minus the last sample's error (a manoeuvre's first turn costs, and
+the drive onto the line pays it back, net).
 
 Each SRPB term is the step's contribution to its metric in the metric's own formula and
 parameters, computed by the metric code (:func:`srpb_gym.metrics.episode.entity_values`
