@@ -156,6 +156,15 @@ def _convert(hint: Any, value: Any, dotted: str, file: str | None, infinite: boo
             _convert(a, v, f"{dotted}[{i}]", file, infinite)
             for i, (a, v) in enumerate(zip(args, value))
         )
+    if origin is dict:
+        if not isinstance(value, Mapping):
+            raise InputError(f"expected a mapping, got {_short(value)}", file, key=dotted)
+        key_hint, value_hint = typing.get_args(hint)
+        return {
+            _convert(key_hint, k, dotted, file): _convert(value_hint, v, f"{dotted}.{k}", file,
+                                                          infinite)
+            for k, v in value.items()
+        }  # fmt: skip
     if origin in (typing.Union, types.UnionType):
         args = typing.get_args(hint)
         if value is None and type(None) in args:

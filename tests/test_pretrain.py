@@ -64,3 +64,100 @@ def test_pretrain_clones_the_planner_and_sets_the_statistics():
     error_after = float(np.mean((after - demos.actions) ** 2))
     assert error_after < 0.1 * error_before, (error_before, error_after)
     assert report["action_mse"] == pytest.approx(error_after, rel=0.5, abs=1e-3)
+
+
+MIX = {"reward": "task", "scenarios": ["corridor", "crossing"]}
+
+
+def _episodes(demos):
+    """The recorded actions of each episode, in order."""
+    ends = np.flatnonzero(demos.dones) + 1
+    return np.split(demos.actions, ends[:-1])
+
+
+def test_each_scenario_of_a_mixture_is_driven_by_its_teacher():
+    alone = collect("SRPB-Mix-v0", MIX, "go-to-goal", 6, noise=0.0)
+    assert set(alone.scenarios) == {"corridor", "crossing"} and alone.episodes == 6
+    named = collect("SRPB-Mix-v0", MIX, "", 6, noise=0.0,
+                    teachers={"corridor": "go-to-goal", "crossing": "go-to-goal"})  # fmt: skip
+    np.testing.assert_array_equal(named.actions, alone.actions)
+    mixed = collect("SRPB-Mix-v0", MIX, "go-to-goal", 6, noise=0.0, teachers={"crossing": "dwa"})
+    assert mixed.scenarios == alone.scenarios
+    for scenario, ours, theirs in zip(mixed.scenarios, _episodes(mixed), _episodes(alone)):
+        if scenario == "corridor":  # the fallback planner, as alone
+            np.testing.assert_array_equal(ours, theirs)
+        else:  # dwa, which slows down and turns where go-to-goal does not
+            assert ours.shape != theirs.shape or not np.array_equal(ours, theirs)
+    counts = mixed.by_scenario()
+    assert sum(n for n, _ in counts.values()) == 6
+    assert counts["crossing"][1] == sum(
+        r for s, r in zip(mixed.scenarios, mixed.reached) if s == "crossing"
+    )
+
+
+@pytest.mark.parametrize(
+    ("env_id", "kwargs", "planner", "teachers", "expected"),
+    [
+        (
+            "SRPB-Corridor-v0",
+            {},
+            "",
+            {"corridor": "dwa"},
+            "pretrain_teachers: SRPB-Corridor-v0 draws no scenarios",
+        ),
+        (
+            "SRPB-Mix-v0",
+            MIX,
+            "dwa",
+            {"crowd": "dwa"},
+            "pretrain_teachers: crowd: no scenario of SRPB-Mix-v0 (its scenarios: corridor, "
+            "crossing)",
+        ),
+        (
+            "SRPB-Mix-v0",
+            MIX,
+            "",
+            {"corridor": "dwa"},
+            "pretrain_planner: no teacher for crossing: name it in pretrain_teachers",
+        ),
+    ],
+)
+def test_teacher_errors(env_id, kwargs, planner, teachers, expected):
+    from srpb_gym.errors import InputError
+
+    with pytest.raises(InputError) as err:
+        collect(env_id, {"reward": "task", **kwargs}, planner, 1, noise=0.0, teachers=teachers)
+    assert expected in str(err.value)
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_trained_model_teaches_with_its_own_statistics(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+
+    from srpb_gym.errors import InputError
+    from srpb_gym.planners.learned import LearnedPolicy
+
+    demos = collect("SRPB-Corridor-v0", {"reward": "srpb"}, "ppo-corridor-srpb", 1, noise=0.2)
+    assert demos.episodes == 1 and len(demos.obs) > 20
+    policy = LearnedPolicy(_shipped("ppo-corridor-srpb"))
+    expected = np.stack([policy.act(o, None) for o in demos.obs])  # type: ignore[arg-type]
+    np.testing.assert_allclose(demos.actions, expected, atol=1e-6)
+
+    env = gym.make("SRPB-Corridor-v0", observation={"people": 3})
+    PPO("MlpPolicy", env, n_steps=64, batch_size=64).save(tmp_path / "other.zip")
+    env.close()
+    with pytest.raises(InputError) as err:
+        collect("SRPB-Mix-v0", MIX, "dwa", 1, noise=0.0,
+                teachers={"crossing": str(tmp_path / "other.zip")})  # fmt: skip
+    assert str(err.value).startswith("pretrain_teachers.crossing: ")
+    assert "trained for the observation space" in str(err.value)
+
+
+def _shipped(name: str) -> str:
+    from srpb_gym.models import model_path
+
+    path = model_path(name)
+    assert path is not None
+    return str(path)

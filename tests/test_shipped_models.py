@@ -269,3 +269,22 @@ def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):
         assert start(folder) == ((0, None) if model is None else (1_100_000, name))
     shipped = start(MODELS_DIR / "ppo-crowd-srpb")
     assert shipped[1] == "ppo-crowd-task" and shipped[0] > 0
+
+
+def test_the_card_names_each_scenario_teacher_of_a_distillation():
+    from training import ship
+
+    single = {"planner": "dwa", "demo_episodes": 150, "demo_steps": 12345,
+              "demo_success": 0.7, "action_mse": 0.0123}  # fmt: skip
+    assert ship._start({"warm_start": single}) == (
+        "behaviour cloning of `dwa`: 150 episodes, 12,345 steps (70 % success), action MSE 0.012"
+    )
+    by = {"corridor": {"teacher": "ppo-corridor-srpb", "episodes": 2, "success": 1.0},
+          "crowd": {"teacher": "dwa", "episodes": 4, "success": 0.25}}  # fmt: skip
+    text = ship._start({"warm_start": {**single, "demo_episodes": 6, "demo_success": 0.5,
+                                       "teachers": {"corridor": "ppo-corridor-srpb"},
+                                       "demo_by_scenario": by}})  # fmt: skip
+    assert text == ("behaviour cloning of a teacher per scenario (corridor: "
+                    "`ppo-corridor-srpb`, 2 episodes (100 % success); crowd: `dwa`, 4 "
+                    "episodes (25 % success)): 6 episodes, 12,345 steps (50 % success), "
+                    "action MSE 0.012")  # fmt: skip

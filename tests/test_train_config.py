@@ -80,7 +80,14 @@ def test_file_errors_name_file_line_and_key(tmp_path, text, expected):
         (["n_steps=[1"], "--hyperparams: n_steps:"),
         (["learning_rate=.nan"], "--hyperparams: learning_rate: must be finite"),
         (["policy=CnnPolicy"], "policy: only MlpPolicy fits the flat observation"),
-        (["pretrain_planner=astar"], "pretrain_planner: choose one of dwa, go-to-goal, social-dwa"),
+        (
+            ["pretrain_planner=astar"],
+            "pretrain_planner: 'astar' is no planner (dwa, go-to-goal, "
+            "social-dwa, social-force), shipped model (",
+        ),
+        (["pretrain_teachers={crowd: astar}"], "pretrain_teachers.crowd: 'astar' is no planner"),
+        (["pretrain_teachers=[dwa]"], "--hyperparams: pretrain_teachers: expected a mapping"),
+        (["pretrain_teachers={crowd: 3}"], "pretrain_teachers.crowd: expected a string"),
         (["pretrain_noise=2"], "pretrain_noise: must be in [0, 1], got 2"),
         (["pretrain_episodes=0"], "pretrain_episodes: must be >= 1, got 0"),
     ],
@@ -89,6 +96,20 @@ def test_override_errors(items, expected):
     with pytest.raises(InputError) as err:
         resolve("SRPB-Crowd-v0", parse_overrides(items))
     assert expected in str(err.value)
+
+
+def test_teachers_are_planners_models_or_model_files(tmp_path):
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "model.zip").write_bytes(b"")
+    config = resolve("SRPB-Mix-v0", parse_overrides([
+        "pretrain_planner=ppo-mix-srpb",
+        f"pretrain_teachers={{crowd: dwa, corridor: ppo-corridor-srpb, doorway: {tmp_path}/run}}",
+    ]))  # fmt: skip
+    assert config.pretrain_planner == "ppo-mix-srpb"
+    assert config.pretrain_teachers == {"crowd": "dwa", "corridor": "ppo-corridor-srpb",
+                                        "doorway": f"{tmp_path}/run"}  # fmt: skip
+    assert config.as_dict()["pretrain_teachers"] == config.pretrain_teachers
+    assert resolve("SRPB-Mix-v0").pretrain_teachers == {}
 
 
 def test_overrides_are_read_as_plain_data_only():

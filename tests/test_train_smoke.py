@@ -210,6 +210,43 @@ def test_warm_start_from_a_planner_is_recorded(tmp_path):
     assert result.steps == 256
 
 
+def test_warm_start_from_a_teacher_per_scenario_is_recorded(tmp_path):
+    """Distillation: each scenario of the mixture demonstrated by its own teacher (a
+    shipped model for one, a planner for the rest); a teacher that does not fit stops the
+    run before training and leaves no run folder."""
+    from srpb_gym.errors import InputError
+
+    overrides = {"n_timesteps": 128, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
+                 "n_envs": 1, "net_arch": [16], "eval_freq": 0,
+                 "pretrain_planner": "go-to-goal",
+                 "pretrain_teachers": {"corridor": "ppo-corridor-srpb"},
+                 "pretrain_episodes": 4, "pretrain_epochs": 1}  # fmt: skip
+    kwargs = {"scenarios": ["corridor", "crossing"], "weights": [1, 1]}
+    lines: list[str] = []
+    train("SRPB-Mix-v0", resolve("SRPB-Mix-v0", overrides), out=str(tmp_path / "run"),
+          env_kwargs=kwargs, progress=False, log=lines.append)  # fmt: skip
+    warm = json.loads((tmp_path / "run" / "run.json").read_text())["warm_start"]
+    assert warm["teachers"] == {"corridor": "ppo-corridor-srpb"}
+    assert warm["planner"] == "go-to-goal" and warm["demo_episodes"] == 4
+    by = warm["demo_by_scenario"]  # seeds 2,000,000-2,000,003 draw both scenarios
+    assert by["corridor"]["teacher"] == "ppo-corridor-srpb" and by["corridor"]["episodes"] == 3
+    assert by["crossing"]["teacher"] == "go-to-goal" and by["crossing"]["episodes"] == 1
+    assert by["corridor"]["success"] == 1.0  # the shipped corridor model reaches its goals
+    assert any(
+        line.startswith(
+            "warm start from corridor: ppo-corridor-srpb, crossing: go-to-goal: 4 episodes"
+        )
+        for line in lines
+    ), lines
+
+    with pytest.raises(InputError, match="pretrain_teachers: doorway: no scenario"):
+        train("SRPB-Mix-v0", resolve("SRPB-Mix-v0", {**overrides,
+                                                     "pretrain_teachers": {"doorway": "dwa"}}),
+              out=str(tmp_path / "bad"), env_kwargs=kwargs, progress=False,
+              log=lambda line: None)  # fmt: skip
+    assert not (tmp_path / "bad").exists()
+
+
 def test_init_starts_from_a_trained_model(tmp_path):
     import numpy as np
     from stable_baselines3 import PPO
@@ -256,6 +293,11 @@ def test_init_starts_from_a_trained_model(tmp_path):
     with pytest.raises(InputError, match="not both"):
         train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small,
                                                                "pretrain_planner": "dwa"}),
+              out=str(tmp_path / "d"), progress=False, log=lambda line: None,
+              init=first.out)  # fmt: skip
+    with pytest.raises(InputError, match="not both"):
+        train("SRPB-Mix-v0", resolve("SRPB-Mix-v0", {**small,
+                                                     "pretrain_teachers": {"crowd": "dwa"}}),
               out=str(tmp_path / "d"), progress=False, log=lambda line: None,
               init=first.out)  # fmt: skip
     with pytest.raises(InputError, match="no model file"):

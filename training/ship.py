@@ -174,7 +174,15 @@ def _start(training: dict[str, Any]) -> str:
         )
     if not warm:
         return "random"
-    return (f"behaviour cloning of `{warm['planner']}`: {warm['demo_episodes']} episodes, "
+    by_scenario = warm.get("demo_by_scenario")
+    if by_scenario:  # a teacher per scenario
+        teachers = "; ".join(f"{name}: `{entry['teacher']}`, {entry['episodes']} episodes "
+                             f"({100 * entry['success']:.0f} % success)"
+                             for name, entry in by_scenario.items())  # fmt: skip
+        source = f"of a teacher per scenario ({teachers})"
+    else:
+        source = f"of `{warm['planner']}`"
+    return (f"behaviour cloning {source}: {warm['demo_episodes']} episodes, "
             f"{warm['demo_steps']:,} steps ({100 * warm['demo_success']:.0f} % success), "
             f"action MSE {warm['action_mse']:.3f}")  # fmt: skip
 

@@ -14,6 +14,7 @@ Imports neither stable-baselines3 nor torch.
 from __future__ import annotations
 
 import dataclasses
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.resources import files
@@ -49,11 +50,15 @@ class TrainConfig:
     eval`` harness (0: none), each over ``eval_episodes`` episodes; ``torch_threads``:
     threads of torch in the training process (0: torch's default, one per core).
 
-    ``pretrain_planner``: a classical planner (``dwa``, ``social-dwa``, ...) whose
-    ``pretrain_episodes`` demonstrations warm-start the policy before PPO (empty: none;
-    :mod:`srpb_gym.training.pretrain`): ``pretrain_epochs`` passes of behaviour cloning,
-    executed actions with Gaussian noise ``pretrain_noise``, then the policy's log
-    standard deviation set to ``pretrain_log_std``.
+    ``pretrain_planner``: the teacher whose ``pretrain_episodes`` demonstrations
+    warm-start the policy before PPO (empty: none; :mod:`srpb_gym.training.pretrain`): a
+    classical planner (``dwa``, ``social-dwa``, ...), a shipped model's name or a model
+    file (or a run folder holding ``model.zip``); ``pretrain_epochs`` passes of behaviour
+    cloning, executed actions with Gaussian noise ``pretrain_noise``, then the policy's
+    log standard deviation set to ``pretrain_log_std``. ``pretrain_teachers``: for
+    ``SRPB-Mix-v0``, a teacher per scenario (scenario name -> teacher, as
+    ``pretrain_planner``); the episodes of a scenario it does not name are driven by
+    ``pretrain_planner``.
     """
 
     n_timesteps: int = 1_000_000
@@ -77,6 +82,7 @@ class TrainConfig:
     eval_episodes: int = 20
     torch_threads: int = 0
     pretrain_planner: str = ""
+    pretrain_teachers: dict[str, str] = dataclasses.field(default_factory=dict)
     pretrain_episodes: int = 100
     pretrain_epochs: int = 30
     pretrain_noise: float = 0.1
@@ -94,11 +100,9 @@ class TrainConfig:
         _at_least("pretrain_episodes", self.pretrain_episodes, 1)
         _at_least("pretrain_epochs", self.pretrain_epochs, 1)
         if self.pretrain_planner:
-            from srpb_gym.planners import PLANNERS
-
-            if self.pretrain_planner not in PLANNERS:
-                raise ValueError(f"pretrain_planner: choose one of {', '.join(sorted(PLANNERS))} "
-                                 f"or leave it empty, got {self.pretrain_planner!r}")  # fmt: skip
+            _check_teacher("pretrain_planner", self.pretrain_planner)
+        for scenario, teacher in self.pretrain_teachers.items():
+            _check_teacher(f"pretrain_teachers.{scenario}", teacher)
         if not 0.0 <= self.pretrain_noise <= 1.0:
             raise ValueError(f"pretrain_noise: must be in [0, 1], got {self.pretrain_noise!r}")
         if not -5.0 <= self.pretrain_log_std <= 1.0:
@@ -145,6 +149,20 @@ class TrainConfig:
         out = dataclasses.asdict(self)
         out["net_arch"] = list(self.net_arch)
         return out
+
+
+def _check_teacher(name: str, teacher: str) -> None:
+    """A teacher of the warm start: a planner's name, a shipped model or a model file."""
+    from srpb_gym.models import model_names, model_path
+    from srpb_gym.planners import PLANNERS
+
+    if teacher in PLANNERS or model_path(teacher) is not None or os.path.isfile(teacher):
+        return
+    if os.path.isfile(os.path.join(teacher, "model.zip")):
+        return
+    raise ValueError(f"{name}: {teacher!r} is no planner ({', '.join(sorted(PLANNERS))}), "
+                     f"shipped model ({', '.join(model_names()) or 'none'}), model file or "
+                     "run folder holding model.zip")  # fmt: skip
 
 
 def _at_least(name: str, value: int, low: int) -> None:

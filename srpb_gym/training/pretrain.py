@@ -1,4 +1,4 @@
-"""A warm start for PPO: behaviour cloning of a classical planner.
+"""A warm start for PPO: behaviour cloning of a classical planner or of trained models.
 
 PPO from random weights with the ``srpb`` preset does not find its way around the
 standing pair of ``fformation`` (0 % success in five runs): exploration never reaches
@@ -8,18 +8,20 @@ start from the same policy, so that what differs between their models is the rew
 doing (the shipped corridor models and the generalist clone ``dwa``; the fformation ones
 clone ``social-dwa``, whose route around the pair the ``srpb`` preset keeps and the
 ``task`` preset wears down towards the pair). :func:`pretrain` drives ``episodes``
-episodes with a planner of :mod:`srpb_gym.planners`, on seeds from :data:`DEMO_SEED`
-(apart from training, periodic-evaluation and test seeds), and:
+episodes with a teacher, on seeds from :data:`DEMO_SEED` (apart from training,
+periodic-evaluation and test seeds): a planner of :mod:`srpb_gym.planners` or a trained
+model (:func:`make_teacher`), and for a mixture of scenarios a teacher per scenario, so
+that specialists are distilled into one policy. Then it:
 
 1. sets the ``VecNormalize`` statistics (observations, discounted returns) from the
    demonstrations, so that the first PPO update sees the inputs the policy was fitted on;
-2. fits the policy's action mean to the planner's actions (mean squared error) and its
+2. fits the policy's action mean to the teachers' actions (mean squared error) and its
    value network to the demonstrations' discounted normalised returns;
 3. sets the policy's log standard deviation to ``log_std`` (PPO's own start, 0, is a
    standard deviation of 1 on actions in [-1, 1]: it would undo the cloning at once).
 
-While collecting, the executed action is the planner's plus Gaussian noise of standard
-deviation ``noise`` (the recorded target stays the planner's own action), so that the
+While collecting, the executed action is the teacher's plus Gaussian noise of standard
+deviation ``noise`` (the recorded target stays the teacher's own action), so that the
 demonstrations also show how to get back from the small errors the clone will make.
 """
 
@@ -33,6 +35,9 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from srpb_gym.errors import InputError
+from srpb_gym.planners.base import Planner
+
 #: first seed of the demonstration episodes (training: the run's seed; periodic
 #: evaluation: 1,000,000; tests of shipped models: 10,000)
 DEMO_SEED = 2_000_000
@@ -40,32 +45,96 @@ DEMO_SEED = 2_000_000
 
 @dataclass
 class Demonstrations:
-    """Raw observations, the planner's actions, rewards and episode ends (step-aligned)."""
+    """Raw observations, the teachers' actions, rewards and episode ends (step-aligned);
+    the scenario of each episode (``""`` for an environment without scenarios to draw)
+    and whether it reached the goal."""
 
     obs: np.ndarray
     actions: np.ndarray
     rewards: np.ndarray
     dones: np.ndarray
-    successes: int
-    episodes: int
+    scenarios: tuple[str, ...] = ()
+    reached: tuple[bool, ...] = ()
+
+    @property
+    def episodes(self) -> int:
+        return len(self.reached)
+
+    @property
+    def successes(self) -> int:
+        return sum(self.reached)
+
+    def by_scenario(self) -> dict[str, tuple[int, int]]:
+        """Episodes and successes of each scenario, by scenario name."""
+        out: dict[str, tuple[int, int]] = {}
+        for name, success in zip(self.scenarios, self.reached):
+            n, k = out.get(name, (0, 0))
+            out[name] = (n + 1, k + success)
+        return dict(sorted(out.items()))
+
+
+def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> Planner:
+    """The planner behind ``teacher``: a classical planner by its name, or a learned one
+    (a shipped model's name, a model file or a run folder holding ``model.zip``, with its
+    observation statistics), checked to act on ``env``'s spaces. Failures are an
+    :class:`InputError` naming ``key``."""
+    from srpb_gym.planners import PLANNERS, make_planner
+
+    if teacher in PLANNERS:
+        return make_planner(teacher)
+    from srpb_gym.evaluation.policies import load_policy
+    from srpb_gym.evaluation.spec import PlannerSpec
+    from srpb_gym.training.run import resolve_init
+
+    try:
+        path, vecnormalize = resolve_init(teacher)
+        policy = load_policy(PlannerSpec(name=teacher, policy=path, vecnormalize=vecnormalize))
+        policy.check_spaces(env.observation_space, env.action_space)
+    except (InputError, ValueError) as exc:
+        message = exc.message if isinstance(exc, InputError) else str(exc)
+        raise InputError(message, key=key) from None
+    return policy
 
 
 def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: int,
-            noise: float, seed: int = DEMO_SEED) -> Demonstrations:  # fmt: skip
+            noise: float, seed: int = DEMO_SEED,
+            teachers: Mapping[str, str] | None = None) -> Demonstrations:  # fmt: skip
     """Drive ``episodes`` episodes of ``env_id`` with ``planner`` (executed actions with
-    Gaussian noise ``noise``, drawn from a generator seeded with ``seed``)."""
-    from srpb_gym.planners import make_planner
-
+    Gaussian noise ``noise``, drawn from a generator seeded with ``seed``). ``teachers``:
+    the teacher of each scenario of a mixture (``info["scenario"]``) instead of
+    ``planner``; an empty ``planner`` then requires a teacher for every scenario."""
     env = gym.make(env_id, **env_kwargs)
     base = env.unwrapped
-    agent = make_planner(planner)
-    rng = np.random.default_rng(seed)
-    obs_l, act_l, rew_l, done_l = [], [], [], []
-    successes = 0
+    teachers = dict(teachers or {})
+    scenarios = tuple(getattr(base, "scenarios", ()))
     try:
+        if teachers and not scenarios:
+            raise InputError(f"{env_id} draws no scenarios: give one teacher in "
+                             "pretrain_planner", key="pretrain_teachers")  # fmt: skip
+        unknown = sorted(set(teachers) - set(scenarios))
+        if unknown:
+            raise InputError(f"{', '.join(unknown)}: no scenario of {env_id} (its scenarios: "
+                             f"{', '.join(scenarios)})", key="pretrain_teachers")  # fmt: skip
+        untaught = [name for name in scenarios if name not in teachers]
+        if not planner and (untaught or not scenarios):
+            raise InputError(f"no teacher for {', '.join(untaught) or env_id}: name it in "
+                             "pretrain_teachers or give pretrain_planner",
+                             key="pretrain_planner")  # fmt: skip
+        agents: dict[str, Planner] = {}
+        for name, teacher in teachers.items():
+            agents[name] = make_teacher(teacher, env, f"pretrain_teachers.{name}")
+        fallback = make_teacher(planner, env) if planner and (untaught or not scenarios) else None
+        rng = np.random.default_rng(seed)
+        obs_l, act_l, rew_l, done_l = [], [], [], []
+        scenario_l: list[str] = []
+        reached_l: list[bool] = []
         for episode in range(episodes):
-            obs, _ = env.reset(seed=seed + episode)
+            obs, info = env.reset(seed=seed + episode)
+            scenario = str(info.get("scenario", ""))
+            agent = agents.get(scenario, fallback)
+            assert agent is not None  # every scenario has a teacher (checked above)
             agent.reset(base.knowledge())
+            scenario_l.append(scenario)
             while True:
                 action = np.asarray(agent.act(obs, base.knowledge()), dtype=np.float32)
                 base.set_planning_time(0.0)
@@ -78,13 +147,13 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
                 rew_l.append(reward)
                 done_l.append(terminated or truncated)
                 if terminated or truncated:
-                    successes += bool(info.get("is_success", False))
+                    reached_l.append(bool(info.get("is_success", False)))
                     break
     finally:
         env.close()
     return Demonstrations(np.asarray(obs_l, np.float32), np.asarray(act_l, np.float32),
                           np.asarray(rew_l, np.float64), np.asarray(done_l, bool),
-                          successes, episodes)  # fmt: skip
+                          tuple(scenario_l), tuple(reached_l))  # fmt: skip
 
 
 def discounted_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.ndarray:
@@ -114,15 +183,17 @@ def running_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.
 
 def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], *,
              planner: str, episodes: int, epochs: int, noise: float, log_std: float,
-             gamma: float, log: Callable[[str], None] = print) -> dict[str, float]:  # fmt: skip
+             gamma: float, log: Callable[[str], None] = print,
+             teachers: Mapping[str, str] | None = None) -> dict[str, Any]:  # fmt: skip
     """Warm-start ``model`` (an SB3 ``PPO``) and ``venv`` (its ``VecNormalize``, or any
-    other VecEnv when observations are not normalised) from ``planner``'s demonstrations;
-    returns what happened (demonstration success rate, steps, final losses, wall time)."""
+    other VecEnv when observations are not normalised) from the demonstrations of
+    ``planner`` (and of ``teachers``, by scenario: :func:`collect`); returns what happened
+    (demonstration success rate, by scenario too, steps, final losses, wall time)."""
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
     started = time.perf_counter()
-    demos = collect(env_id, env_kwargs, planner, episodes, noise)
+    demos = collect(env_id, env_kwargs, planner, episodes, noise, teachers=teachers)
     obs, rewards = demos.obs, demos.rewards
     if isinstance(venv, VecNormalize):
         venv.obs_rms.update(obs)
@@ -162,8 +233,18 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], 
     report = {"demo_episodes": demos.episodes, "demo_success": demos.successes / demos.episodes,
               "demo_steps": len(x), "action_mse": action_loss, "value_mse": value_loss,
               "wall_time_s": round(time.perf_counter() - started, 1)}  # fmt: skip
+    if teachers:
+        report["demo_by_scenario"] = {
+            name: {"teacher": teachers.get(name, planner), "episodes": n, "success": k / n}
+            for name, (n, k) in demos.by_scenario().items()
+        }
+    source = (
+        planner
+        if not teachers
+        else ", ".join(f"{name}: {teachers.get(name, planner)}" for name in demos.by_scenario())
+    )
     log(
-        f"warm start from {planner}: {demos.episodes} episodes ({len(x)} steps, "
+        f"warm start from {source}: {demos.episodes} episodes ({len(x)} steps, "
         f"{100 * report['demo_success']:.0f} % success), action MSE {action_loss:.4f}, "
         f"value MSE {value_loss:.4f}, {report['wall_time_s']} s"
     )

@@ -257,7 +257,7 @@ def train(
     weights = check_env_args(env_id, preset, env_kwargs, config.gamma)
     eval_ids, eval_kwargs = eval_setup(env_id, env_kwargs) if config.eval_freq > 0 else ([], {})
     check_eval_targets(env_id, eval_ids)
-    if init is not None and config.pretrain_planner:
+    if init is not None and (config.pretrain_planner or config.pretrain_teachers):
         raise InputError("start from a trained model or from a planner's demonstrations "
                          "(pretrain_planner), not both", key="--init")  # fmt: skip
     init_model = None if init is None else resolve_init(init)
@@ -287,15 +287,21 @@ def train(
                                             "vecnormalize": init_model[1],
                                             "steps": model_steps(init_model[0])}})  # fmt: skip
             log(f"starting from {init_model[0]}")
-        if config.pretrain_planner:
+        if config.pretrain_planner or config.pretrain_teachers:
             from srpb_gym.training.pretrain import pretrain
 
-            report = pretrain(model, venv, env_id, kwargs, planner=config.pretrain_planner,
-                              episodes=config.pretrain_episodes, epochs=config.pretrain_epochs,
-                              noise=config.pretrain_noise, log_std=config.pretrain_log_std,
-                              gamma=config.gamma, log=log)  # fmt: skip
+            try:
+                report = pretrain(model, venv, env_id, kwargs, planner=config.pretrain_planner,
+                                  episodes=config.pretrain_episodes,
+                                  epochs=config.pretrain_epochs, noise=config.pretrain_noise,
+                                  log_std=config.pretrain_log_std, gamma=config.gamma, log=log,
+                                  teachers=config.pretrain_teachers)  # fmt: skip
+            except InputError:  # nothing trained: leave no run folder behind
+                shutil.rmtree(out, ignore_errors=True)
+                raise
+            teachers = {"teachers": config.pretrain_teachers} if config.pretrain_teachers else {}
             _update_run_json(out, {"warm_start": {"planner": config.pretrain_planner,
-                                                  **report}})  # fmt: skip
+                                                  **teachers, **report}})  # fmt: skip
         tensorboard = make_output_format("tensorboard", os.path.join(out, "tb"))
         model.set_logger(Logger(out, [make_output_format("csv", out), tensorboard]))
         outcomes = Outcomes()
