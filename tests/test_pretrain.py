@@ -95,6 +95,12 @@ def test_each_scenario_of_a_mixture_is_driven_by_its_teacher():
     )
 
 
+def test_a_scenario_never_drawn_needs_no_teacher():
+    kwargs = {**MIX, "weights": [1, 0]}
+    demos = collect("SRPB-Mix-v0", kwargs, "", 2, noise=0.0, teachers={"corridor": "go-to-goal"})
+    assert demos.scenarios == ("corridor", "corridor")
+
+
 @pytest.mark.parametrize(
     ("env_id", "kwargs", "planner", "teachers", "expected"),
     [
@@ -153,6 +159,34 @@ def test_a_trained_model_teaches_with_its_own_statistics(tmp_path):
                 teachers={"crossing": str(tmp_path / "other.zip")})  # fmt: skip
     assert str(err.value).startswith("pretrain_teachers.crossing: ")
     assert "trained for the observation space" in str(err.value)
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_trained_teacher_leaves_the_run_generators_alone():
+    """Loading a model seeds the global generators with the seed it was trained with
+    (0 for the shipped models): runs of different seeds that learn from it would draw the
+    same numbers in PPO afterwards."""
+    torch = pytest.importorskip("torch")
+    import random
+
+    torch.manual_seed(7)
+    np.random.seed(7)
+    random.seed(7)
+    before = (torch.get_rng_state(), np.random.get_state()[1].copy(), random.getstate())
+    collect("SRPB-Mix-v0", MIX, "go-to-goal", 1, noise=0.0,
+            teachers={"corridor": "ppo-corridor-srpb"})  # fmt: skip
+    assert torch.equal(torch.get_rng_state(), before[0])
+    np.testing.assert_array_equal(np.random.get_state()[1], before[1])
+    assert random.getstate() == before[2]
+    torch.manual_seed(7)
+    import gymnasium as gym
+
+    from srpb_gym.training.pretrain import make_teacher
+
+    env = gym.make("SRPB-Corridor-v0")
+    make_teacher("ppo-corridor-srpb", env)  # alone, it does re-seed them: the guard is needed
+    env.close()
+    assert not torch.equal(torch.get_rng_state(), before[0])
 
 
 def _shipped(name: str) -> str:

@@ -274,6 +274,12 @@ def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):
 def test_the_card_names_each_scenario_teacher_of_a_distillation():
     from training import ship
 
+    # the hyperparameters as --hyperparams takes them
+    assert ship._flow({"crowd": "dwa", "corridor": "ppo-corridor-srpb"}) == (
+        "{crowd: dwa, corridor: ppo-corridor-srpb}"
+    )
+    assert ship._flow([256, 256]) == "[256, 256]" and ship._flow(5e-5) == "5e-05"
+
     single = {"planner": "dwa", "demo_episodes": 150, "demo_steps": 12345,
               "demo_success": 0.7, "action_mse": 0.0123}  # fmt: skip
     assert ship._start({"warm_start": single}) == (

@@ -98,6 +98,17 @@ def test_override_errors(items, expected):
     assert expected in str(err.value)
 
 
+def test_a_bad_teacher_in_a_file_is_located_at_its_line(tmp_path):
+    path = tmp_path / "ppo.yaml"
+    path.write_text("default:\n  n_envs: 2\nSRPB-Mix-v0:\n  n_steps: 512\n"
+                    "  pretrain_teachers:\n    crowd: astar\n")  # fmt: skip
+    with pytest.raises(InputError) as err:
+        resolve("SRPB-Mix-v0", source=str(path))
+    assert str(err.value).startswith(
+        f"{path}:6: SRPB-Mix-v0.pretrain_teachers.crowd: 'astar' is no planner"
+    )
+
+
 def test_teachers_are_planners_models_or_model_files(tmp_path):
     (tmp_path / "run").mkdir()
     (tmp_path / "run" / "model.zip").write_bytes(b"")

@@ -74,7 +74,8 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| checkpoint | {card['checkpoint']}{_validation(card.get('validation'))} |",
         f"| command | `{t['command']}` |",
         f"| versions | {', '.join(f'{k} {v}' for k, v in t['versions'].items())} |",
-        "", "Hyperparameters: " + ", ".join(f"`{k}={v}`" for k, v in card["hyperparams"].items()),
+        "", "Hyperparameters: " + ", ".join(f"`{k}={_flow(v)}`"
+                                            for k, v in card["hyperparams"].items()),
         "", f"## Test: {card['test']['episodes']} episodes per scenario, seeds from "
         f"{card['test']['seed']} (never trained on)", "",
         "| scenario | success | collision | timeout | m_psi | m_fsi | m_dir | m_mef |",
@@ -138,6 +139,13 @@ def _validation(validation: dict[str, Any] | None) -> str:
         f"against {100 * mean(other, 'success'):.0f} %, median m_psi "
         f"{mean(chosen, 'm_psi'):.3g} % against {mean(other, 'm_psi'):.3g} %)"
     )
+
+
+def _flow(value: Any) -> str:
+    """A hyperparameter as ``--hyperparams`` takes it (a mapping in YAML's flow style)."""
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k}: {v}" for k, v in value.items()) + "}"
+    return str(value)
 
 
 def _wall_time(training: dict[str, Any]) -> str:

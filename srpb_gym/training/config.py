@@ -215,7 +215,7 @@ def _build(data: Mapping[str, Any], entry: str, name: str, lines: Mapping[str, i
     except InputError as exc:
         key, message = exc.key or entry, exc.message
         field_name, sep, rest = message.partition(": ")
-        if key == entry and sep and field_name in _FIELDS:  # a check across fields
+        if key == entry and sep and field_name.split(".")[0] in _FIELDS:  # a field's check
             key, message = f"{entry}.{field_name}", rest
         line = lines.get(key)
         if line is None:  # a value inherited from the default entry

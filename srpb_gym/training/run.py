@@ -258,8 +258,9 @@ def train(
     eval_ids, eval_kwargs = eval_setup(env_id, env_kwargs) if config.eval_freq > 0 else ([], {})
     check_eval_targets(env_id, eval_ids)
     if init is not None and (config.pretrain_planner or config.pretrain_teachers):
-        raise InputError("start from a trained model or from a planner's demonstrations "
-                         "(pretrain_planner), not both", key="--init")  # fmt: skip
+        raise InputError("start from a trained model or from demonstrations "
+                         "(pretrain_planner, pretrain_teachers), not both",
+                         key="--init")  # fmt: skip
     init_model = None if init is None else resolve_init(init)
     kwargs = {"reward": preset, **env_kwargs}
     if config.torch_threads > 0:
