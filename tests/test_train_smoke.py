@@ -59,7 +59,8 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
         rows = list(csv.DictReader(f))
     assert [int(r["step"]) for r in rows] == [512, 1024]
     assert all(r["env"] == "SRPB-Corridor-v0" and r["episodes"] == "1" for r in rows)
-    assert (out / "eval" / "step_000000512" / "episodes.csv").is_file()
+    assert (out / "eval" / "step_000001024" / "episodes.csv").is_file()  # the latest
+    assert len(list((out / "eval").iterdir())) <= 2  # and the best
 
     rc = main(["eval", "--env", "SRPB-Corridor-v0", "--policy", str(out / "model.zip"),
                "--episodes", "1", "--warmup", "0", "--out", str(tmp_path / "eval")])  # fmt: skip
@@ -380,3 +381,50 @@ def test_periodic_evaluation_uses_the_env_kwargs(tmp_path, capsys):
     assert main([*args, "--out", str(tmp_path / "e2")]) == 2
     err = capsys.readouterr().err
     assert "--policy" in err and "observation" in err and "(SRPB-Corridor-v0)" in err, err
+
+
+def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monkeypatch):
+    """Each periodic evaluation writes a full evaluation folder (75 MB for the mixture):
+    the folders of the latest and of the best evaluation are kept, as the checkpoints."""
+    import os
+    from types import SimpleNamespace
+
+    from srpb_gym.training import callbacks
+
+    def save(model, path):
+        os.makedirs(path)
+        (tmp_path / path).joinpath("model.zip").write_bytes(b"")
+
+    def run(config, log=None, progress=True):
+        os.makedirs(config.out)
+        return SimpleNamespace(results=None)
+
+    successes = iter([0.5, 0.9, 0.7, 0.6, 1.0, 0.8])
+
+    def summarize(results):
+        figures = {k: 0.0 for k in callbacks.EVAL_COLUMNS if k not in ("step", "env")}
+        return {"SRPB-Corridor-v0": {**figures, "success": next(successes), "m_psi": 10.0}}
+
+    monkeypatch.setattr(callbacks, "save_checkpoint", save)
+    monkeypatch.setattr(callbacks, "summarize_results", summarize)
+    monkeypatch.setattr("srpb_gym.evaluation.harness.run_evaluation", run)
+    monkeypatch.setattr("srpb_gym.evaluation.spec.resolve_config",
+                        lambda *args, **kwargs: SimpleNamespace(out=kwargs["out"]))  # fmt: skip
+    cb = callbacks.PeriodicEvalCallback(str(tmp_path), ["SRPB-Corridor-v0"], 100, 1)
+    cb.model = SimpleNamespace(logger=SimpleNamespace(record=lambda *args: None))
+    kept = []
+    for step in range(100, 700, 100):
+        cb.num_timesteps = step
+        cb.evaluate()
+        kept.append(sorted(p.name for p in (tmp_path / "eval").iterdir()))
+    assert kept == [
+        ["step_000000100"],
+        ["step_000000200"],  # the new best is also the latest
+        ["step_000000200", "step_000000300"],
+        ["step_000000200", "step_000000400"],
+        ["step_000000500"],
+        ["step_000000500", "step_000000600"],
+    ]
+    assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == ["step_000000600"]
+    with open(tmp_path / "evaluations.csv", newline="") as f:
+        assert [r["step"] for r in csv.DictReader(f)] == [str(s) for s in range(100, 700, 100)]
