@@ -95,6 +95,31 @@ def test_each_scenario_of_a_mixture_is_driven_by_its_teacher():
     )
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_teacher_whose_scenario_was_never_drawn_is_reported():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from srpb_gym.training.config import TrainConfig
+    from srpb_gym.training.pretrain import pretrain
+    from srpb_gym.training.run import make_vec_env
+
+    kwargs = {**MIX, "weights": [1, 1e-9]}
+    config = TrainConfig(n_envs=1, n_steps=64, batch_size=64, net_arch=(16,))
+    venv = VecNormalize(make_vec_env("SRPB-Mix-v0", config, kwargs, 0))
+    model = PPO("MlpPolicy", venv, seed=0, **config.ppo_kwargs())
+    lines: list[str] = []
+    report = pretrain(model, venv, "SRPB-Mix-v0", kwargs, planner="go-to-goal", episodes=2,
+                      epochs=1, noise=0.0, log_std=-1.0, gamma=0.99, log=lines.append,
+                      teachers={"crossing": "dwa"})  # fmt: skip
+    venv.close()
+    assert report["teachers_without_episodes"] == ["crossing"]
+    assert list(report["demo_by_scenario"]) == ["corridor"]
+    assert lines[-1] == ("warning: no demonstration episode drew crossing: dwa taught nothing "
+                         "(raise pretrain_episodes or the scenario's weight)")  # fmt: skip
+
+
 def test_a_scenario_never_drawn_needs_no_teacher():
     kwargs = {**MIX, "weights": [1, 0]}
     demos = collect("SRPB-Mix-v0", kwargs, "", 2, noise=0.0, teachers={"corridor": "go-to-goal"})

@@ -279,4 +279,10 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], 
         f"{100 * report['demo_success']:.0f} % success), action MSE {action_loss:.4f}, "
         f"value MSE {value_loss:.4f}, {report['wall_time_s']} s"
     )
+    idle = sorted(set(teachers or {}) - set(demos.by_scenario()))
+    if idle:
+        report["teachers_without_episodes"] = idle
+        log(f"warning: no demonstration episode drew {', '.join(idle)}: "
+            f"{', '.join(str((teachers or {})[n]) for n in idle)} taught nothing "
+            "(raise pretrain_episodes or the scenario's weight)")  # fmt: skip
     return report
