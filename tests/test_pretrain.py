@@ -203,15 +203,42 @@ def test_a_trained_teacher_leaves_the_run_generators_alone():
     assert torch.equal(torch.get_rng_state(), before[0])
     np.testing.assert_array_equal(np.random.get_state()[1], before[1])
     assert random.getstate() == before[2]
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_loading_a_model_leaves_the_global_generators_alone(tmp_path):
+    """stable-baselines3's load seeds them with the model's own seed; a training run loads
+    models for its warm start and for every periodic evaluation (in its own process)."""
+    torch = pytest.importorskip("torch")
+    import random
+
+    from stable_baselines3 import PPO
+
+    from srpb_gym.evaluation.harness import run_evaluation
+    from srpb_gym.evaluation.spec import resolve_config
+    from srpb_gym.planners.learned import LearnedPolicy, global_rngs_kept
+
+    def states():
+        return torch.get_rng_state(), np.random.get_state()[1].copy(), random.getstate()
+
+    def same(a, b):
+        return torch.equal(a[0], b[0]) and np.array_equal(a[1], b[1]) and a[2] == b[2]
+
     torch.manual_seed(7)
-    import gymnasium as gym
-
-    from srpb_gym.training.pretrain import make_teacher
-
-    env = gym.make("SRPB-Corridor-v0")
-    make_teacher("ppo-corridor-srpb", env)  # alone, it does re-seed them: the guard is needed
-    env.close()
-    assert not torch.equal(torch.get_rng_state(), before[0])
+    np.random.seed(7)
+    random.seed(7)
+    before = states()
+    with global_rngs_kept():
+        PPO.load(_shipped("ppo-corridor-srpb"), device="cpu")  # re-seeds: the guard undoes it
+        assert not same(states(), before)
+    assert same(states(), before)
+    LearnedPolicy(_shipped("ppo-corridor-srpb"))
+    assert same(states(), before)
+    config = resolve_config(["SRPB-Corridor-v0"], policies=[_shipped("ppo-corridor-srpb")],
+                            episodes=1, seed=1_000_000, out=str(tmp_path / "eval"),
+                            warmup=0, log=None)  # fmt: skip
+    run_evaluation(config, log=None, progress=False)  # as the periodic evaluation does
+    assert same(states(), before)
 
 
 def _shipped(name: str) -> str:

@@ -16,7 +16,8 @@ import json
 import os
 import pickle
 import zipfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -117,8 +118,38 @@ def detect_algorithm(path: str | os.PathLike[str]) -> str | None:
                           f"stable-baselines3 algorithm ({', '.join(ALGORITHMS)})")  # fmt: skip
 
 
+@contextmanager
+def global_rngs_kept() -> Iterator[None]:
+    """Restore the global generators of ``random``, numpy and torch (CUDA included) on
+    leaving. stable-baselines3's ``load`` seeds them with the seed the model was trained
+    with: a training run that loads a model (a teacher of its warm start, or the
+    checkpoint of each periodic evaluation, evaluated in the training process) would
+    otherwise draw the same numbers whatever its own seed, and again after every
+    evaluation."""
+    import random
+
+    states = (random.getstate(), np.random.get_state())
+    try:
+        import torch
+    except ImportError:
+        torch = None
+    torch_state = None if torch is None else torch.get_rng_state()
+    cuda = torch is not None and torch.cuda.is_available()
+    cuda_states = torch.cuda.get_rng_state_all() if cuda else None
+    try:
+        yield
+    finally:
+        random.setstate(states[0])
+        np.random.set_state(states[1])
+        if torch is not None:
+            torch.set_rng_state(torch_state)
+        if cuda:
+            torch.cuda.set_rng_state_all(cuda_states)
+
+
 def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[Any, str]:
-    """Load a model on the CPU; returns it and its algorithm.
+    """Load a model on the CPU; returns it and its algorithm. The global random generators
+    are left as they were (:func:`global_rngs_kept`).
 
     ``algo``: force one of :data:`ALGORITHMS`; ``None`` detects it from the file
     (:func:`detect_algorithm`), else tries each algorithm in turn. Raises
@@ -129,7 +160,8 @@ def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[A
     if algo is not None:
         name = algo.upper()
         try:
-            return algorithm_class(name).load(path, device="cpu"), name
+            with global_rngs_kept():
+                return algorithm_class(name).load(path, device="cpu"), name
         except ImportError:
             raise
         except Exception as exc:
@@ -140,7 +172,8 @@ def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[A
     failures = []
     for name in order:
         try:
-            return algorithm_class(name).load(path, device="cpu"), name
+            with global_rngs_kept():
+                return algorithm_class(name).load(path, device="cpu"), name
         except ImportError:
             raise
         except Exception as exc:

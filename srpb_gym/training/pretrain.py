@@ -28,8 +28,7 @@ demonstrations also show how to get back from the small errors the clone will ma
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator, Mapping
-from contextlib import contextmanager
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -98,32 +97,6 @@ def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> P
     return policy
 
 
-@contextmanager
-def _global_rngs_kept() -> Iterator[None]:
-    """Restore the global generators of ``random``, numpy and torch on leaving: loading a
-    stable-baselines3 model seeds them with the seed it was trained with, which would
-    make every run that learns from it draw the same numbers whatever its own seed."""
-    import random
-
-    states = (random.getstate(), np.random.get_state())
-    try:
-        import torch
-    except ImportError:
-        torch = None
-    torch_state = None if torch is None else torch.get_rng_state()
-    cuda = torch is not None and torch.cuda.is_available()
-    cuda_states = torch.cuda.get_rng_state_all() if cuda else None
-    try:
-        yield
-    finally:
-        random.setstate(states[0])
-        np.random.set_state(states[1])
-        if torch is not None:
-            torch.set_rng_state(torch_state)
-        if cuda:
-            torch.cuda.set_rng_state_all(cuda_states)
-
-
 def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: int,
             noise: float, seed: int = DEMO_SEED,
             teachers: Mapping[str, str] | None = None) -> Demonstrations:  # fmt: skip
@@ -149,12 +122,11 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
             raise InputError(f"no teacher for {', '.join(untaught) or env_id}: name it in "
                              "pretrain_teachers or give pretrain_planner",
                              key="pretrain_planner")  # fmt: skip
-        with _global_rngs_kept():  # loading a model re-seeds them with its own seed
-            agents = {name: make_teacher(teacher, env, f"pretrain_teachers.{name}")
-                      for name, teacher in teachers.items()}  # fmt: skip
-            fallback = None
-            if planner and (untaught or not scenarios):
-                fallback = make_teacher(planner, env)
+        agents = {name: make_teacher(teacher, env, f"pretrain_teachers.{name}")
+                  for name, teacher in teachers.items()}  # fmt: skip
+        fallback = None
+        if planner and (untaught or not scenarios):
+            fallback = make_teacher(planner, env)
         rng = np.random.default_rng(seed)
         obs_l, act_l, rew_l, done_l = [], [], [], []
         scenario_l: list[str] = []
