@@ -16,11 +16,12 @@ file; ``srpb-gym models`` lists them. Loading a model needs the ``train`` extra
 from __future__ import annotations
 
 import json
+import os
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-__all__ = ["card", "model_names", "model_path"]
+__all__ = ["card", "find_model", "model_names", "model_path"]
 
 MODEL_FILE = "model.zip"
 
@@ -41,6 +42,16 @@ def model_path(name: str) -> Path | None:
         return None
     path = _root() / name / MODEL_FILE
     return Path(str(path)) if path.is_file() else None
+
+
+def find_model(given: str) -> str | None:
+    """The ``model.zip`` that ``given`` names: a model file, a run folder holding
+    ``model.zip``, or a shipped model's name; ``None`` if it names none."""
+    path = os.path.join(given, MODEL_FILE) if os.path.isdir(given) else given
+    if os.path.isfile(path):
+        return path
+    shipped = model_path(given)
+    return None if shipped is None else str(shipped)
 
 
 def card(name: str) -> dict[str, Any]:

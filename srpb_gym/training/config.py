@@ -14,7 +14,6 @@ Imports neither stable-baselines3 nor torch.
 from __future__ import annotations
 
 import dataclasses
-import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.resources import files
@@ -153,12 +152,10 @@ class TrainConfig:
 
 def _check_teacher(name: str, teacher: str) -> None:
     """A teacher of the warm start: a planner's name, a shipped model or a model file."""
-    from srpb_gym.models import model_names, model_path
+    from srpb_gym.models import find_model, model_names
     from srpb_gym.planners import PLANNERS
 
-    if teacher in PLANNERS or model_path(teacher) is not None or os.path.isfile(teacher):
-        return
-    if os.path.isfile(os.path.join(teacher, "model.zip")):
+    if teacher in PLANNERS or find_model(teacher) is not None:
         return
     raise ValueError(f"{name}: {teacher!r} is no planner ({', '.join(sorted(PLANNERS))}), "
                      f"shipped model ({', '.join(model_names()) or 'none'}), model file or "

@@ -344,18 +344,13 @@ def train(
 def resolve_init(given: str) -> tuple[str, str | None]:
     """The ``model.zip`` and ``vecnormalize.pkl`` (or ``None``) that ``--init`` names: a
     file, a folder holding ``model.zip``, or a shipped model's name."""
-    from srpb_gym.models import model_path
+    from srpb_gym.models import find_model
     from srpb_gym.planners.learned import find_vecnormalize
 
-    path = given
-    if os.path.isdir(path):
-        path = os.path.join(path, "model.zip")
-    if not os.path.isfile(path):
-        shipped = model_path(given)
-        if shipped is None:
-            raise InputError(f"no model file, run folder with model.zip or shipped model "
-                             f"named {given!r}", key="--init")  # fmt: skip
-        path = str(shipped)
+    path = find_model(given)
+    if path is None:
+        raise InputError(f"no model file, run folder with model.zip or shipped model "
+                         f"named {given!r}", key="--init")  # fmt: skip
     return path, find_vecnormalize(path)
 
 
