@@ -106,6 +106,58 @@ def test_retraining_commands_follow_each_model_recipe():
     assert commands("ppo-fformation-srpb", 5, 0)[0][short.index("--max-minutes") + 1] == "5"
 
 
+def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
+    import subprocess
+
+    from training import retrain_models as rm
+
+    pairs = (("crowd", "ppo-crowd-task"), ("corridor", "ppo-corridor-srpb"))
+    student = rm.RunSettings(teachers=pairs)
+    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-mix-srpb", student)
+    hyper = rm.commands("ppo-mix-srpb", 60, 1)[0]
+    hyper = hyper[hyper.index("--hyperparams") + 1 :]
+    assert hyper == ["pretrain_teachers={crowd: ppo-crowd-task, corridor: ppo-corridor-srpb}",
+                     "torch_threads=1"]  # fmt: skip
+    shipped = ["ppo-crowd-task", "ppo-corridor-srpb"]
+    everything = ["ppo-mix-srpb", "ppo-crowd-task", "ppo-fformation-task"]
+    assert rm.waves(everything, shipped) == [
+        ["ppo-crowd-task", "ppo-fformation-task"], ["ppo-mix-srpb"]
+    ]  # fmt: skip
+    assert rm.waves(["ppo-mix-srpb"], shipped) == [["ppo-mix-srpb"]]  # the shipped ones teach
+    with pytest.raises(ValueError, match=r"its teacher ppo-crowd-task \(crowd\) is not shipped"):
+        rm.waves(["ppo-mix-srpb"], ["ppo-corridor-srpb"])
+    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-crowd-task", student)
+    with pytest.raises(ValueError, match=r"its teacher ppo-crowd-task \(crowd\) is taught too"):
+        rm.waves(["ppo-mix-srpb"], shipped)
+    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-crowd-task", rm.RunSettings())
+
+    # a failed teacher: its student is not trained; the other models of the wave are
+    ran = []
+
+    def trained():
+        return [c[c.index("--out") + 1].split("/")[-1].rsplit("-", 2)[0] for c in ran
+                if c[1] == "train"]  # fmt: skip
+
+    def run(cmd, check):
+        ran.append(cmd)
+        failing = cmd[1] == "train" and "ppo-crowd-task" in cmd[cmd.index("--out") + 1]
+        return subprocess.CompletedProcess(cmd, 1 if failing else 0)
+
+    monkeypatch.setattr(rm.subprocess, "run", run)
+    monkeypatch.setattr(rm.sys, "argv", ["retrain_models", *everything])
+    assert rm.main() == 1
+    assert trained() == ["ppo-crowd-task", "ppo-fformation-task"]
+    err = capsys.readouterr().err
+    assert "ppo-mix-srpb: not retrained, its teacher ppo-crowd-task failed" in err
+    ran.clear()
+    monkeypatch.setattr(rm.sys, "argv", ["retrain_models", "--jobs", "2", *everything])
+    monkeypatch.setattr(rm.subprocess, "run", lambda cmd, check: ran.append(cmd) or
+                        subprocess.CompletedProcess(cmd, 0))  # fmt: skip
+    assert rm.main() == 0
+    assert set(trained()[:2]) == {"ppo-crowd-task", "ppo-fformation-task"}
+    assert trained()[2:] == ["ppo-mix-srpb"]  # the student after both teachers' wave
+
+
 @pytest.mark.parametrize(("best", "final", "chosen"), [
     ((0.80, 20.0), (0.90, 25.0), "final"),  # higher success wins
     ((0.90, 25.0), (0.90, 20.0), "final"),  # equal success: lower m_psi wins
@@ -294,3 +346,11 @@ def test_the_card_names_each_scenario_teacher_of_a_distillation():
                     "`ppo-corridor-srpb`, 2 episodes (100 % success); crowd: `dwa`, 4 "
                     "episodes (25 % success)): 6 episodes, 12,345 steps (50 % success), "
                     "action MSE 0.012")  # fmt: skip
+    rounds = [{"episodes": 300, "steps": 81234, "success": 0.8},
+              {"episodes": 300, "steps": 80000, "success": 0.875}]  # fmt: skip
+    assert ship._start({"warm_start": {**single, "dagger": rounds}}) == (
+        "behaviour cloning of `dwa`: 150 episodes, 12,345 steps (70 % success); DAgger round 1: "
+        "the clone drove 300 episodes, 81,234 steps (80 % success), labelled by the teachers; "
+        "DAgger round 2: the clone drove 300 episodes, 80,000 steps (88 % success), labelled "
+        "by the teachers, action MSE 0.012"
+    )

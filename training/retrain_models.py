@@ -17,7 +17,10 @@ Some models start from something else than random weights, as their cards say: a
 start from a classical planner's demonstrations (``pretrain_planner``: ``dwa`` or
 ``social-dwa``), or the best checkpoint of another model's recipe, run first, that this
 model's run then fine-tunes (``--init``: ``ppo-crowd-srpb`` fine-tunes a new
-``ppo-crowd-task``); the two stages together stay within ``--max-minutes``.
+``ppo-crowd-task``); the two stages together stay within ``--max-minutes``. The
+generalist is warm-started from the specialists, a teacher per scenario
+(:attr:`RunSettings.teachers`): they are retrained first when named too (or when all
+models are retrained), otherwise the shipped ones teach.
 """
 
 from __future__ import annotations
@@ -58,7 +61,8 @@ class RunSettings:
     it is shorter than ``--max-minutes`` allows (longer training gives another model: the
     fformation ``task`` model drifts towards the standing pair); ``validate``: ship best/
     or the final model, whichever is better on that many validation seeds
-    (``training.ship --validate``), instead of best/."""
+    (``training.ship --validate``), instead of best/; ``teachers``: (scenario, model)
+    pairs of the warm start (``pretrain_teachers``), each a model of this script."""
 
     seed: int = 0
     overrides: tuple[str, ...] = ()
@@ -66,6 +70,7 @@ class RunSettings:
     minutes: float | None = None
     validate: int = 0
     env_kwargs: tuple[str, ...] = ()
+    teachers: tuple[tuple[str, str], ...] = ()
 
 
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
@@ -156,12 +161,33 @@ def _train(name: str, minutes: float, out: str, threads: int) -> list[str]:
     """``srpb-gym train`` with the environment, preset and settings of model ``name``."""
     env_id, preset = MODELS[name]
     settings = RUN_SETTINGS.get(name, RunSettings())
-    hyperparams = [*settings.overrides, *([f"torch_threads={threads}"] if threads else [])]
+    hyperparams = [*settings.overrides]
+    if settings.teachers:
+        pairs = ", ".join(f"{scenario}: {teacher}" for scenario, teacher in settings.teachers)
+        hyperparams.append(f"pretrain_teachers={{{pairs}}}")
+    hyperparams += [f"torch_threads={threads}"] if threads else []
     cmd = ["srpb-gym", "train", "--env", env_id, "--reward", preset, "--seed",
            str(settings.seed), "--max-minutes", f"{minutes:g}", "--out", out,
            "--no-progress"]  # fmt: skip
     cmd += ["--env-kwargs", *settings.env_kwargs] if settings.env_kwargs else []
     return cmd + (["--hyperparams", *hyperparams] if hyperparams else [])
+
+
+def waves(names: list[str], shipped: list[str]) -> list[list[str]]:
+    """``names`` in the order they can be retrained: the models taught by others
+    (:attr:`RunSettings.teachers`) after the rest, so that a teacher retrained too is
+    shipped before its student's run starts; a teacher that is neither named nor shipped,
+    or is taught itself, is an error (:class:`ValueError`)."""
+    taught = [n for n in names if RUN_SETTINGS.get(n, RunSettings()).teachers]
+    for name in taught:
+        for scenario, teacher in RUN_SETTINGS[name].teachers:
+            if RUN_SETTINGS.get(teacher, RunSettings()).teachers:
+                raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is taught too")
+            if teacher not in names and teacher not in shipped:
+                raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is not shipped; "
+                                 "name it too to retrain it first")  # fmt: skip
+    first = [n for n in names if n not in taught]
+    return [wave for wave in (first, taught) if wave]
 
 
 def main() -> int:
@@ -177,19 +203,34 @@ def main() -> int:
     names = args.names or [n for n in MODELS if n in model_names()]
     threads = 1 if args.jobs > 1 else 0
     try:
+        order = waves(names, model_names())
+    except ValueError as exc:
+        parser.error(str(exc))
+    try:
         plans = {name: commands(name, args.max_minutes, threads) for name in names}
     except ValueError as exc:
         parser.error(f"{exc}; raise --max-minutes")
 
+    failed: set[str] = set()
+
     def one(name: str) -> int:
+        teachers = {t for _, t in RUN_SETTINGS.get(name, RunSettings()).teachers}
+        if teachers & failed:
+            print(f"{name}: not retrained, its teacher {sorted(teachers & failed)[0]} failed",
+                  file=sys.stderr, flush=True)  # fmt: skip
+            return 1
         for cmd in plans[name]:
             print("+ " + shlex.join(cmd), flush=True)
             if not args.dry_run and subprocess.run(cmd, check=False).returncode != 0:
+                failed.add(name)
                 return 1
         return 0
 
-    with ThreadPoolExecutor(max(1, args.jobs)) as pool:
-        return max(pool.map(one, names), default=0)
+    rc = 0
+    for wave in order:  # the teachers of the second wave are shipped by the first
+        with ThreadPoolExecutor(max(1, args.jobs)) as pool:
+            rc = max(rc, *pool.map(one, wave))
+    return rc
 
 
 if __name__ == "__main__":
