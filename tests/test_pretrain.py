@@ -247,3 +247,69 @@ def _shipped(name: str) -> str:
     path = model_path(name)
     assert path is not None
     return str(path)
+
+
+def test_a_driver_drives_and_the_teacher_labels_each_step():
+    seen: list[np.ndarray] = []
+
+    def stand(obs):
+        seen.append(obs.copy())
+        return np.zeros(2, np.float32)  # a stop command: never reaches the goal
+
+    short = {"reward": "task", "max_episode_steps": 40}
+    alone = collect("SRPB-Corridor-v0", short, "go-to-goal", 1, noise=0.0)
+    driven = collect("SRPB-Corridor-v0", short, "go-to-goal", 1, noise=0.0, driver=stand)
+    np.testing.assert_array_equal(driven.obs, np.asarray(seen))  # the driver saw every step
+    assert driven.reached == (False,)  # the driver's outcome
+    # the labels are go-to-goal's: it drives ahead, its first command is the same as alone
+    np.testing.assert_array_equal(driven.actions[0], alone.actions[0])
+    assert np.all(driven.actions[:, 0] > 0.1)
+    # the stopped robot's observations barely change; go-to-goal's own episode moves on
+    assert not np.allclose(alone.obs[-1], alone.obs[0], atol=0.05)
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_dagger_rounds_let_the_clone_drive_on_later_seeds(monkeypatch):
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from srpb_gym.training import pretrain as module
+    from srpb_gym.training.config import TrainConfig
+    from srpb_gym.training.run import make_vec_env
+
+    calls = []
+    real = module.collect
+
+    def spy(*args, **kwargs):
+        demos = real(*args, **kwargs)
+        calls.append((args[3], kwargs.get("seed", module.DEMO_SEED), kwargs.get("driver"),
+                      len(demos.obs)))  # fmt: skip
+        return demos
+
+    monkeypatch.setattr(module, "collect", spy)
+    kwargs = {"reward": "task", "max_episode_steps": 60}
+    config = TrainConfig(n_envs=1, n_steps=64, batch_size=64, net_arch=(16,))
+    venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, kwargs, 0))
+    model = PPO("MlpPolicy", venv, seed=0, **config.ppo_kwargs())
+    lines: list[str] = []
+    report = module.pretrain(model, venv, "SRPB-Corridor-v0", kwargs, planner="go-to-goal",
+                             episodes=2, epochs=2, noise=0.0, log_std=-1.0, gamma=0.99,
+                             log=lines.append, dagger_rounds=2, dagger_episodes=3)  # fmt: skip
+    # the teacher's 2 episodes, then two rounds of 3 driven by the clone, on the next seeds
+    assert [(n, seed) for n, seed, _, _ in calls] == [
+        (2, module.DEMO_SEED), (3, module.DEMO_SEED + 2), (3, module.DEMO_SEED + 5)
+    ]  # fmt: skip
+    assert calls[0][2] is None and all(driver is not None for _, _, driver, _ in calls[1:])
+    assert [r["episodes"] for r in report["dagger"]] == [3, 3]
+    assert [r["steps"] for r in report["dagger"]] == [c[3] for c in calls[1:]]
+    assert report["demo_episodes"] == 2 and report["demo_steps"] == calls[0][3]
+    assert venv.obs_rms.count > sum(c[3] for c in calls)  # every step went into the statistics
+    assert lines[0].startswith("DAgger round 1: the clone reached the goal in ")
+    assert f"{sum(c[3] for c in calls[1:])} DAgger steps" in lines[-1]
+    # the driver is the clone itself: its action for an observation is the policy's
+    obs = real("SRPB-Corridor-v0", kwargs, "go-to-goal", 1, noise=0.0).obs[:3]
+    drive = calls[1][2]
+    expected, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+    np.testing.assert_allclose([drive(o) for o in obs], expected, atol=1e-6)
+    venv.close()

@@ -90,12 +90,34 @@ def test_file_errors_name_file_line_and_key(tmp_path, text, expected):
         (["pretrain_teachers={crowd: 3}"], "pretrain_teachers.crowd: expected a string"),
         (["pretrain_noise=2"], "pretrain_noise: must be in [0, 1], got 2"),
         (["pretrain_episodes=0"], "pretrain_episodes: must be >= 1, got 0"),
+        (["pretrain_dagger_rounds=-1"], "pretrain_dagger_rounds: must be >= 0, got -1"),
+        (["pretrain_dagger_episodes=0"], "pretrain_dagger_episodes: must be >= 1, got 0"),
+        (
+            [
+                "pretrain_episodes=1001",
+                "pretrain_dagger_rounds=3",
+                "pretrain_dagger_episodes=333000",
+            ],
+            "pretrain_episodes: 1000001 demonstration episodes in all (with the DAgger rounds'); "
+            "at most 1,000,000 keep their seeds apart from the validation seeds",
+        ),
     ],
 )
 def test_override_errors(items, expected):
     with pytest.raises(InputError) as err:
         resolve("SRPB-Crowd-v0", parse_overrides(items))
     assert expected in str(err.value)
+
+
+def test_demonstration_seeds_stay_below_the_validation_seeds():
+    from srpb_gym.training.config import DEMO_EPISODES_MAX
+    from srpb_gym.training.pretrain import DEMO_SEED
+    from training.ship import VALIDATION_SEED
+
+    assert DEMO_SEED + DEMO_EPISODES_MAX <= VALIDATION_SEED
+    most = ["pretrain_episodes=1000", "pretrain_dagger_rounds=3", "pretrain_dagger_episodes=333000"]
+    config = resolve("SRPB-Crowd-v0", parse_overrides(most))
+    assert config.pretrain_episodes + 3 * config.pretrain_dagger_episodes == DEMO_EPISODES_MAX
 
 
 def test_a_bad_teacher_in_a_file_is_located_at_its_line(tmp_path):

@@ -190,9 +190,14 @@ def _start(training: dict[str, Any]) -> str:
         source = f"of a teacher per scenario ({teachers})"
     else:
         source = f"of `{warm['planner']}`"
+    dagger = "".join(
+        f"; DAgger round {i}: the clone drove {r['episodes']} episodes, {r['steps']:,} steps "
+        f"({100 * r['success']:.0f} % success), labelled by the teachers"
+        for i, r in enumerate(warm.get("dagger", ()), 1)
+    )
     return (f"behaviour cloning {source}: {warm['demo_episodes']} episodes, "
-            f"{warm['demo_steps']:,} steps ({100 * warm['demo_success']:.0f} % success), "
-            f"action MSE {warm['action_mse']:.3f}")  # fmt: skip
+            f"{warm['demo_steps']:,} steps ({100 * warm['demo_success']:.0f} % success)"
+            f"{dagger}, action MSE {warm['action_mse']:.3f}")  # fmt: skip
 
 
 def best_step(run: Path) -> int | None:

@@ -29,6 +29,10 @@ __all__ = ["DEFAULT_KEY", "TrainConfig", "config_file", "load_entries", "parse_o
 DEFAULT_KEY = "default"
 VEC_ENVS = ("subproc", "dummy")
 ACTIVATIONS = ("tanh", "relu")
+#: demonstration episodes of a warm start at most (DAgger rounds included): their seeds
+#: start at ``pretrain.DEMO_SEED`` (2,000,000) and stay below the validation seeds of
+#: ``training.ship`` (3,000,000)
+DEMO_EPISODES_MAX = 1_000_000
 #: the keys passed to ``stable_baselines3.PPO`` as they are
 PPO_KEYS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda",
             "clip_range", "ent_coef", "vf_coef", "max_grad_norm")  # fmt: skip
@@ -57,7 +61,9 @@ class TrainConfig:
     log standard deviation set to ``pretrain_log_std``. ``pretrain_teachers``: for
     ``SRPB-Mix-v0``, a teacher per scenario (scenario name -> teacher, as
     ``pretrain_planner``); the episodes of a scenario it does not name are driven by
-    ``pretrain_planner``.
+    ``pretrain_planner``. ``pretrain_dagger_rounds``: rounds of DAgger after the clone,
+    each of ``pretrain_dagger_episodes`` episodes driven by the clone and labelled by the
+    teachers, after which the policy is fitted again on every step so far (0: none).
     """
 
     n_timesteps: int = 1_000_000
@@ -86,6 +92,8 @@ class TrainConfig:
     pretrain_epochs: int = 30
     pretrain_noise: float = 0.1
     pretrain_log_std: float = -1.0
+    pretrain_dagger_rounds: int = 0
+    pretrain_dagger_episodes: int = 200
 
     def __post_init__(self) -> None:
         _at_least("n_timesteps", self.n_timesteps, 1)
@@ -98,6 +106,13 @@ class TrainConfig:
         _at_least("torch_threads", self.torch_threads, 0)
         _at_least("pretrain_episodes", self.pretrain_episodes, 1)
         _at_least("pretrain_epochs", self.pretrain_epochs, 1)
+        _at_least("pretrain_dagger_rounds", self.pretrain_dagger_rounds, 0)
+        _at_least("pretrain_dagger_episodes", self.pretrain_dagger_episodes, 1)
+        demos = self.pretrain_episodes + self.pretrain_dagger_rounds * self.pretrain_dagger_episodes
+        if demos > DEMO_EPISODES_MAX:
+            raise ValueError(f"pretrain_episodes: {demos} demonstration episodes in all (with "
+                             f"the DAgger rounds'); at most {DEMO_EPISODES_MAX:,} keep their "
+                             "seeds apart from the validation seeds")  # fmt: skip
         if self.pretrain_planner:
             _check_teacher("pretrain_planner", self.pretrain_planner)
         for scenario, teacher in self.pretrain_teachers.items():

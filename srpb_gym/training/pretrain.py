@@ -17,7 +17,12 @@ that specialists are distilled into one policy. Then it:
    demonstrations, so that the first PPO update sees the inputs the policy was fitted on;
 2. fits the policy's action mean to the teachers' actions (mean squared error) and its
    value network to the demonstrations' discounted normalised returns;
-3. sets the policy's log standard deviation to ``log_std`` (PPO's own start, 0, is a
+3. optionally, for ``dagger_rounds`` rounds (DAgger, Ross et al. 2011), lets the clone
+   drive more episodes (the next demonstration seeds), has the teachers label every step
+   with their own action, and fits the policy and value network again on all the steps
+   so far, with the statistics updated: the clone learns what to do in the states its
+   own errors lead to;
+4. sets the policy's log standard deviation to ``log_std`` (PPO's own start, 0, is a
    standard deviation of 1 on actions in [-1, 1]: it would undo the cloning at once).
 
 While collecting, the executed action is the teacher's plus Gaussian noise of standard
@@ -41,6 +46,9 @@ from srpb_gym.planners.base import Planner
 #: first seed of the demonstration episodes (training: the run's seed; periodic
 #: evaluation: 1,000,000; tests of shipped models: 10,000)
 DEMO_SEED = 2_000_000
+
+#: a policy that drives instead of the teachers (raw observation -> action)
+Driver = Callable[[np.ndarray], np.ndarray]
 
 
 @dataclass
@@ -99,11 +107,15 @@ def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> P
 
 def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: int,
             noise: float, seed: int = DEMO_SEED,
-            teachers: Mapping[str, str] | None = None) -> Demonstrations:  # fmt: skip
-    """Drive ``episodes`` episodes of ``env_id`` with ``planner`` (executed actions with
-    Gaussian noise ``noise``, drawn from a generator seeded with ``seed``). ``teachers``:
-    the teacher of each scenario of a mixture (``info["scenario"]``) instead of
-    ``planner``; an empty ``planner`` then requires a teacher for every scenario."""
+            teachers: Mapping[str, str] | None = None,
+            driver: Driver | None = None) -> Demonstrations:  # fmt: skip
+    """Drive ``episodes`` episodes of ``env_id`` (seeds from ``seed``) with ``planner``
+    (executed actions with Gaussian noise ``noise``, drawn from a generator seeded with
+    ``seed``). ``teachers``: the teacher of each scenario of a mixture
+    (``info["scenario"]``) instead of ``planner``; an empty ``planner`` then requires a
+    teacher for every scenario. ``driver``: a policy (raw observation -> action) that
+    drives instead of the teachers, which then only label each step with their action
+    (DAgger); ``reached`` is then the driver's success."""
     env = gym.make(env_id, **env_kwargs)
     base = env.unwrapped
     teachers = dict(teachers or {})
@@ -141,9 +153,9 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
             while True:
                 action = np.asarray(agent.act(obs, base.knowledge()), dtype=np.float32)
                 base.set_planning_time(0.0)
-                executed = action
+                executed = action if driver is None else np.asarray(driver(obs), np.float32)
                 if noise > 0:
-                    executed = np.clip(action + rng.normal(0.0, noise, action.shape), -1, 1)
+                    executed = np.clip(executed + rng.normal(0.0, noise, action.shape), -1, 1)
                 obs_l.append(obs)
                 act_l.append(action)
                 obs, reward, terminated, truncated, info = env.step(executed.astype(np.float32))
@@ -187,32 +199,102 @@ def running_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.
 def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], *,
              planner: str, episodes: int, epochs: int, noise: float, log_std: float,
              gamma: float, log: Callable[[str], None] = print,
-             teachers: Mapping[str, str] | None = None) -> dict[str, Any]:  # fmt: skip
+             teachers: Mapping[str, str] | None = None, dagger_rounds: int = 0,
+             dagger_episodes: int = 0) -> dict[str, Any]:  # fmt: skip
     """Warm-start ``model`` (an SB3 ``PPO``) and ``venv`` (its ``VecNormalize``, or any
     other VecEnv when observations are not normalised) from the demonstrations of
-    ``planner`` (and of ``teachers``, by scenario: :func:`collect`); returns what happened
-    (demonstration success rate, by scenario too, steps, final losses, wall time)."""
+    ``planner`` (and of ``teachers``, by scenario: :func:`collect`); then, for each of
+    ``dagger_rounds`` rounds, the clone drives ``dagger_episodes`` more episodes, the
+    teachers label every step, and the policy is fitted again on all the steps so far
+    (DAgger: the clone learns what to do in the states its own errors lead to, which the
+    teachers' demonstrations seldom show). Returns what happened (demonstration success
+    rate, by scenario too, the clone's success in each round, steps, final losses, wall
+    time)."""
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
     started = time.perf_counter()
-    demos = collect(env_id, env_kwargs, planner, episodes, noise, teachers=teachers)
-    obs, rewards = demos.obs, demos.rewards
-    if isinstance(venv, VecNormalize):
-        venv.obs_rms.update(obs)
-        venv.ret_rms.update(running_returns(rewards, demos.dones, gamma))
-        obs = venv.normalize_obs(obs)
-        rewards = venv.normalize_reward(rewards)
-    targets = discounted_returns(np.asarray(rewards, np.float64), demos.dones, gamma)
-
+    normalize = isinstance(venv, VecNormalize)
+    rounds = [collect(env_id, env_kwargs, planner, episodes, noise, teachers=teachers)]
     policy = model.policy
-    policy.set_training_mode(True)
-    x = torch.as_tensor(obs, dtype=torch.float32, device=policy.device)
-    a = torch.as_tensor(demos.actions, dtype=torch.float32, device=policy.device)
-    v = torch.as_tensor(targets, dtype=torch.float32, device=policy.device).unsqueeze(1)
+    generator = torch.Generator().manual_seed(DEMO_SEED)
     params = [p for name, p in policy.named_parameters() if name != "log_std"]
     optimizer = torch.optim.Adam(params, lr=1e-3)
-    generator = torch.Generator().manual_seed(DEMO_SEED)
+    report: dict[str, Any] = {}
+    seed = DEMO_SEED + episodes
+    for round_ in range(dagger_rounds + 1):
+        if round_:
+
+            def drive(obs: np.ndarray) -> np.ndarray:
+                x = venv.normalize_obs(obs) if normalize else obs
+                action, _ = policy.predict(x, deterministic=True)
+                return action
+
+            demos = collect(env_id, env_kwargs, planner, dagger_episodes, noise, seed=seed,
+                            teachers=teachers, driver=drive)  # fmt: skip
+            seed += dagger_episodes
+            rounds.append(demos)
+            report.setdefault("dagger", []).append(_clone_report(demos))
+            log(f"DAgger round {round_}: the clone reached the goal in "
+                f"{100 * demos.successes / demos.episodes:.0f} % of {demos.episodes} episodes "
+                f"({_by_scenario_text(demos)})")  # fmt: skip
+        obs = np.concatenate([d.obs for d in rounds])
+        rewards = np.concatenate([d.rewards for d in rounds])
+        dones = np.concatenate([d.dones for d in rounds])
+        actions = np.concatenate([d.actions for d in rounds])
+        if normalize:  # statistics of every step so far (PPO goes on updating them)
+            fresh = rounds[-1]
+            venv.obs_rms.update(fresh.obs)
+            venv.ret_rms.update(running_returns(fresh.rewards, fresh.dones, gamma))
+            obs = venv.normalize_obs(obs)
+            rewards = venv.normalize_reward(rewards)
+        targets = discounted_returns(np.asarray(rewards, np.float64), dones, gamma)
+        action_loss, value_loss = _fit(policy, optimizer, generator, obs, actions, targets,
+                                       epochs)  # fmt: skip
+    with torch.no_grad():
+        policy.log_std.fill_(log_std)
+    policy.set_training_mode(False)
+    demos = rounds[0]
+    report = {"demo_episodes": demos.episodes, "demo_success": demos.successes / demos.episodes,
+              "demo_steps": len(demos.obs), **report, "action_mse": action_loss,
+              "value_mse": value_loss,
+              "wall_time_s": round(time.perf_counter() - started, 1)}  # fmt: skip
+    if teachers:
+        report["demo_by_scenario"] = {
+            name: {"teacher": teachers.get(name, planner), "episodes": n, "success": k / n}
+            for name, (n, k) in demos.by_scenario().items()
+        }
+    source = (
+        planner
+        if not teachers
+        else ", ".join(f"{name}: {teachers.get(name, planner)}" for name in demos.by_scenario())
+    )
+    more = f", {sum(len(d.obs) for d in rounds[1:])} DAgger steps" if dagger_rounds else ""
+    log(
+        f"warm start from {source}: {demos.episodes} episodes ({len(demos.obs)} steps, "
+        f"{100 * report['demo_success']:.0f} % success{more}), action MSE {action_loss:.4f}, "
+        f"value MSE {value_loss:.4f}, {report['wall_time_s']} s"
+    )
+    drawn = {name for d in rounds for name in d.scenarios}
+    idle = sorted(set(teachers or {}) - drawn)
+    if idle:
+        report["teachers_without_episodes"] = idle
+        log(f"warning: no demonstration episode drew {', '.join(idle)}: "
+            f"{', '.join(str((teachers or {})[n]) for n in idle)} taught nothing "
+            "(raise pretrain_episodes or the scenario's weight)")  # fmt: skip
+    return report
+
+
+def _fit(policy: Any, optimizer: Any, generator: Any, obs: np.ndarray, actions: np.ndarray,
+         targets: np.ndarray, epochs: int) -> tuple[float, float]:  # fmt: skip
+    """``epochs`` passes of behaviour cloning (action mean) and value regression on
+    normalised ``obs``; the mean losses of the last pass."""
+    import torch
+
+    policy.set_training_mode(True)
+    x = torch.as_tensor(obs, dtype=torch.float32, device=policy.device)
+    a = torch.as_tensor(actions, dtype=torch.float32, device=policy.device)
+    v = torch.as_tensor(targets, dtype=torch.float32, device=policy.device).unsqueeze(1)
     batch = 256
     action_loss = value_loss = float("nan")
     for _ in range(epochs):
@@ -230,31 +312,21 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], 
             totals[0] += la.item() * len(idx)
             totals[1] += lv.item() * len(idx)
         action_loss, value_loss = totals[0] / len(x), totals[1] / len(x)
-    with torch.no_grad():
-        policy.log_std.fill_(log_std)
     policy.set_training_mode(False)
-    report = {"demo_episodes": demos.episodes, "demo_success": demos.successes / demos.episodes,
-              "demo_steps": len(x), "action_mse": action_loss, "value_mse": value_loss,
-              "wall_time_s": round(time.perf_counter() - started, 1)}  # fmt: skip
-    if teachers:
-        report["demo_by_scenario"] = {
-            name: {"teacher": teachers.get(name, planner), "episodes": n, "success": k / n}
-            for name, (n, k) in demos.by_scenario().items()
-        }
-    source = (
-        planner
-        if not teachers
-        else ", ".join(f"{name}: {teachers.get(name, planner)}" for name in demos.by_scenario())
-    )
-    log(
-        f"warm start from {source}: {demos.episodes} episodes ({len(x)} steps, "
-        f"{100 * report['demo_success']:.0f} % success), action MSE {action_loss:.4f}, "
-        f"value MSE {value_loss:.4f}, {report['wall_time_s']} s"
-    )
-    idle = sorted(set(teachers or {}) - set(demos.by_scenario()))
-    if idle:
-        report["teachers_without_episodes"] = idle
-        log(f"warning: no demonstration episode drew {', '.join(idle)}: "
-            f"{', '.join(str((teachers or {})[n]) for n in idle)} taught nothing "
-            "(raise pretrain_episodes or the scenario's weight)")  # fmt: skip
-    return report
+    return action_loss, value_loss
+
+
+def _clone_report(demos: Demonstrations) -> dict[str, Any]:
+    """A DAgger round's figures: the clone's episodes, steps and success, by scenario."""
+    out: dict[str, Any] = {"episodes": demos.episodes, "steps": len(demos.obs),
+                           "success": demos.successes / demos.episodes}  # fmt: skip
+    if any(demos.scenarios):
+        out["by_scenario"] = {name: {"episodes": n, "success": k / n}
+                              for name, (n, k) in demos.by_scenario().items()}  # fmt: skip
+    return out
+
+
+def _by_scenario_text(demos: Demonstrations) -> str:
+    parts = [f"{name} {100 * k / n:.0f} %" for name, (n, k) in demos.by_scenario().items()
+             if name]  # fmt: skip
+    return ", ".join(parts) or f"{len(demos.obs)} steps"

@@ -296,7 +296,9 @@ def train(
                                   episodes=config.pretrain_episodes,
                                   epochs=config.pretrain_epochs, noise=config.pretrain_noise,
                                   log_std=config.pretrain_log_std, gamma=config.gamma, log=log,
-                                  teachers=config.pretrain_teachers)  # fmt: skip
+                                  teachers=config.pretrain_teachers,
+                                  dagger_rounds=config.pretrain_dagger_rounds,
+                                  dagger_episodes=config.pretrain_dagger_episodes)  # fmt: skip
             except InputError:  # nothing trained: leave no run folder behind
                 shutil.rmtree(out, ignore_errors=True)
                 raise
