@@ -350,7 +350,7 @@ def test_the_card_names_each_scenario_teacher_of_a_distillation():
               {"episodes": 300, "steps": 80000, "success": 0.875}]  # fmt: skip
     assert ship._start({"warm_start": {**single, "dagger": rounds}}) == (
         "behaviour cloning of `dwa`: 150 episodes, 12,345 steps (70 % success); DAgger round 1: "
-        "the clone drove 300 episodes, 81,234 steps (80 % success), labelled by the teachers; "
+        "the clone drove 300 episodes, 81,234 steps (80 % success), labelled by `dwa`; "
         "DAgger round 2: the clone drove 300 episodes, 80,000 steps (88 % success), labelled "
-        "by the teachers, action MSE 0.012"
+        "by `dwa`, action MSE 0.012"
     )

@@ -190,9 +190,10 @@ def _start(training: dict[str, Any]) -> str:
         source = f"of a teacher per scenario ({teachers})"
     else:
         source = f"of `{warm['planner']}`"
+    labels = "the teachers" if by_scenario else f"`{warm['planner']}`"
     dagger = "".join(
         f"; DAgger round {i}: the clone drove {r['episodes']} episodes, {r['steps']:,} steps "
-        f"({100 * r['success']:.0f} % success), labelled by the teachers"
+        f"({100 * r['success']:.0f} % success), labelled by {labels}"
         for i, r in enumerate(warm.get("dagger", ()), 1)
     )
     return (f"behaviour cloning {source}: {warm['demo_episodes']} episodes, "

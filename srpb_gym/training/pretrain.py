@@ -25,9 +25,12 @@ that specialists are distilled into one policy. Then it:
 4. sets the policy's log standard deviation to ``log_std`` (PPO's own start, 0, is a
    standard deviation of 1 on actions in [-1, 1]: it would undo the cloning at once).
 
-While collecting, the executed action is the teacher's plus Gaussian noise of standard
-deviation ``noise`` (the recorded target stays the teacher's own action), so that the
-demonstrations also show how to get back from the small errors the clone will make.
+While collecting, the executed action is the teacher's (in a DAgger round the clone's)
+plus Gaussian noise of standard deviation ``noise``; the recorded target stays the
+teacher's own action, so that the demonstrations also show how to get back from the small
+errors the clone will make. A classical teacher labelling a DAgger round keeps its own
+memory of what it commanded (``dwa``'s previous turn rate, its recovery and impatience
+timers), not of what the clone did; a learned teacher acts on the observation alone.
 """
 
 from __future__ import annotations
@@ -200,7 +203,7 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], 
              planner: str, episodes: int, epochs: int, noise: float, log_std: float,
              gamma: float, log: Callable[[str], None] = print,
              teachers: Mapping[str, str] | None = None, dagger_rounds: int = 0,
-             dagger_episodes: int = 0) -> dict[str, Any]:  # fmt: skip
+             dagger_episodes: int = 200) -> dict[str, Any]:  # fmt: skip
     """Warm-start ``model`` (an SB3 ``PPO``) and ``venv`` (its ``VecNormalize``, or any
     other VecEnv when observations are not normalised) from the demonstrations of
     ``planner`` (and of ``teachers``, by scenario: :func:`collect`); then, for each of
@@ -213,6 +216,8 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], 
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
+    if dagger_rounds and dagger_episodes < 1:
+        raise ValueError(f"dagger_episodes: must be >= 1 with DAgger rounds, got {dagger_episodes}")
     started = time.perf_counter()
     normalize = isinstance(venv, VecNormalize)
     rounds = [collect(env_id, env_kwargs, planner, episodes, noise, teachers=teachers)]
