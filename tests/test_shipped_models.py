@@ -74,14 +74,20 @@ def test_eval_takes_a_short_name(name, tmp_path, capsys):
 
 
 def test_retraining_commands_follow_each_model_recipe():
-    from training.retrain_models import commands
+    from training.retrain_models import RUN_SETTINGS, RunSettings, commands
 
     plain = commands("ppo-crowd-task", 60, 0)
     assert len(plain) == 2 and "--init" not in plain[0]
     assert plain[0][plain[0].index("--hyperparams") + 1 :] == ["learning_rate=1e-4"]
     warm = commands("ppo-mix-srpb", 60, 1)[0]
     hyper = warm[warm.index("--hyperparams") + 1 :]
-    assert "pretrain_planner=dwa" in hyper and "torch_threads=1" in hyper
+    assert "pretrain_episodes=1000" in hyper and "torch_threads=1" in hyper
+    teachers = next(h for h in hyper if h.startswith("pretrain_teachers="))
+    assert teachers.startswith("pretrain_teachers={corridor: ppo-corridor-srpb, ")
+    # the generalist's teachers are models of the retraining script, untaught themselves
+    for scenario, teacher in RUN_SETTINGS["ppo-mix-srpb"].teachers:
+        assert teacher in MODELS and not RUN_SETTINGS.get(teacher, RunSettings()).teachers
+        assert f"{scenario}: {teacher}" in teachers
     kwargs = warm[warm.index("--env-kwargs") + 1 : warm.index("--env-kwargs") + 3]
     assert kwargs[0] == "weights=[1, 1, 3, 2, 3]" and kwargs[1].startswith("reward_weights={obs")
     assert "--env-kwargs" not in plain[0]
