@@ -360,3 +360,23 @@ def test_the_card_names_each_scenario_teacher_of_a_distillation():
         "DAgger round 2: the clone drove 300 episodes, 80,000 steps (88 % success), labelled "
         "by `dwa`, action MSE 0.012"
     )
+
+
+@pytest.mark.parametrize("name", model_names())
+def test_the_card_text_is_the_card_data_and_its_hyperparameters_retrain(name):
+    import dataclasses
+    import json
+
+    from srpb_gym.training.config import parse_overrides, resolve
+    from training.ship import _flow, card_markdown
+
+    folder = model_path(name).parent
+    facts = json.loads((folder / "card.json").read_text(encoding="utf-8"))
+    assert (folder / "card.md").read_text(encoding="utf-8") == card_markdown(name, facts)
+    # the hyperparameters as the card prints them, given to --hyperparams, resolve to the
+    # hyperparameters the model was trained with
+    hyper = facts["hyperparams"]
+    config = resolve(facts["env"], parse_overrides([f"{k}={_flow(v)}" for k, v in hyper.items()]))
+    resolved = {k: list(v) if isinstance(v, tuple) else v
+                for k, v in dataclasses.asdict(config).items() if k in hyper}  # fmt: skip
+    assert resolved == hyper

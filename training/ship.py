@@ -145,7 +145,7 @@ def _flow(value: Any) -> str:
     """A hyperparameter as ``--hyperparams`` takes it (a mapping in YAML's flow style)."""
     if isinstance(value, dict):
         return "{" + ", ".join(f"{k}: {v}" for k, v in value.items()) + "}"
-    return str(value)
+    return '""' if value == "" else str(value)  # an empty value is no YAML document
 
 
 def _wall_time(training: dict[str, Any]) -> str:
