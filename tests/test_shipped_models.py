@@ -136,6 +136,11 @@ def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
     with pytest.raises(ValueError, match=r"its teacher ppo-crowd-task \(crowd\) is taught too"):
         rm.waves(["ppo-mix-srpb"], shipped)
     monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-crowd-task", rm.RunSettings())
+    planner = rm.RunSettings(teachers=(("crowd", "dwa"),))
+    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-mix-srpb", planner)
+    with pytest.raises(ValueError, match=r"its teacher dwa \(crowd\) is no model of this script"):
+        rm.waves(["ppo-mix-srpb"], shipped)
+    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-mix-srpb", student)
 
     # a failed teacher: its student is not trained; the other models of the wave are
     ran = []

@@ -188,11 +188,14 @@ def _train(name: str, minutes: float, out: str, threads: int) -> list[str]:
 def waves(names: list[str], shipped: list[str]) -> list[list[str]]:
     """``names`` in the order they can be retrained: the models taught by others
     (:attr:`RunSettings.teachers`) after the rest, so that a teacher retrained too is
-    shipped before its student's run starts; a teacher that is neither named nor shipped,
-    or is taught itself, is an error (:class:`ValueError`)."""
+    shipped before its student's run starts; a teacher that is no model of this script,
+    neither named nor shipped, or taught itself, is an error (:class:`ValueError`)."""
     taught = [n for n in names if RUN_SETTINGS.get(n, RunSettings()).teachers]
     for name in taught:
         for scenario, teacher in RUN_SETTINGS[name].teachers:
+            if teacher not in MODELS:
+                raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is no model of "
+                                 f"this script ({', '.join(MODELS)})")  # fmt: skip
             if RUN_SETTINGS.get(teacher, RunSettings()).teachers:
                 raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is taught too")
             if teacher not in names and teacher not in shipped:
