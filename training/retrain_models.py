@@ -102,7 +102,8 @@ GENERALIST_TEACHERS = (
 #: and learns with 5e-5 (from the clone of dwa, with 1e-4 its evaluations peaked after
 #: about 15 minutes and declined after about 22; with 5e-5 they rose for 55 minutes), drawing
 #: crossing and doorway three times and crowd twice as often as corridor and fformation
-#: (drawn evenly, it reached 23 % in doorway; with crossing drawn twice, 44 % in crossing)
+#: (drawn evenly, it reached 23 % in doorway; with crossing drawn twice, 44 % in crossing;
+#: distilled, doorway drawn five times was no better there: 75-81 % against 81 %)
 #: and paying the srpb preset's own weights in every scenario (with the five times larger
 #: social weights of corridor and fformation: 75.6 % against 83.4 % on the validation
 #: seeds, crowd and doorway falling)
