@@ -286,7 +286,9 @@ def add_eval_command(subparsers: Any) -> None:
                         "dwa.global_planner.spacing=0.2 (repeatable; applied over "
                         "--planner-config)")  # fmt: skip
     p.add_argument("--policy", metavar="PATH", **many, default=[],
-                   help="stable-baselines3 model .zip file(s), named after the file")  # fmt: skip
+                   help="stable-baselines3 model .zip file(s), srpb-gym train run "
+                        "folder(s) (their model.zip) or shipped model name(s), each named "
+                        "after the file, folder or name")  # fmt: skip
     p.add_argument("--policy-algo", default=None, metavar="ALGO",
                    help="force the algorithm of the --policy files: PPO, A2C, SAC, TD3, DDPG "
                         "or DQN (default: read from each file)")  # fmt: skip

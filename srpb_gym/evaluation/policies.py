@@ -1,10 +1,11 @@
 """Learned policies of an evaluation: each ``--policy`` file checked before the first episode.
 
-For every model file (or short name of a shipped model, :mod:`srpb_gym.models`, which
-also names its column) :func:`policy_specs` reads its algorithm (or takes the forced one),
-finds its observation-normalisation statistics (or says that none were found), loads both
-once and checks the model's observation and action spaces against every environment's,
-so that a run never evaluates a model on observations it was not trained for.
+For every model file (or ``srpb-gym train`` run folder, or short name of a shipped model,
+:mod:`srpb_gym.models`) :func:`policy_specs` names its column, reads its algorithm (or
+takes the forced one), finds its observation-normalisation statistics (or says that none
+were found), loads both once and checks the model's observation and action spaces
+against every environment's, so that a run never evaluates a model on observations it
+was not trained for.
 stable-baselines3 and torch are imported only here, and only when a policy is given.
 """
 
@@ -30,7 +31,9 @@ def policy_specs(
     probe: EvalConfig,
     note: Callable[[str], None],
 ) -> list[PlannerSpec]:
-    """One spec per policy file, named after the file (``<folder>-<stem>`` when two files
+    """One spec per policy: a model file, a ``srpb-gym train`` run folder or a shipped
+    model's short name, named after the file's stem, the folder or the short name (with
+    as many folders above as tell two policies apart: ``<folder>-<stem>`` when two files
     share a stem). ``algo``: forced algorithm or ``None`` (read from each file);
     ``vecnormalize``: ``"auto"``, a file, or ``None``/``"none"`` (raw observations).
     ``probe`` gives the environments; ``note`` receives one line per policy saying which
@@ -45,14 +48,14 @@ def policy_specs(
         vecnormalize = None
     if vecnormalize not in (None, "auto") and not os.path.isfile(vecnormalize):
         raise InputError("no such file", vecnormalize, key="--vecnormalize")
-    given = [os.fspath(p) for p in paths]
-    shipped = [_shipped(p) for p in given]  # a short name of a shipped model, or a file
-    paths = [os.fspath(s) if s is not None else p for p, s in zip(given, shipped)]
-    stems = [g if s is not None else Path(g).stem for g, s in zip(given, shipped)]
+    resolved = [_model_file(os.fspath(p)) for p in paths]
+    files = [os.path.realpath(path) for path, _ in resolved]
+    for i, file in enumerate(files):
+        if file in files[:i]:
+            raise InputError("the same model is given twice", paths[i], key="--policy")
     specs = []
-    for path, stem in zip(paths, stems):
-        name = stem if stems.count(stem) == 1 else f"{Path(path).resolve().parent.name}-{stem}"
-        spec = _policy_spec(name, os.fspath(path), algo, vecnormalize, probe.envs)
+    for (path, _), name in zip(resolved, unique_names([parts for _, parts in resolved])):
+        spec = _policy_spec(name, path, algo, vecnormalize, probe.envs)
         policy = load_policy(spec)
         spec = PlannerSpec(name=spec.name, policy=spec.policy, algo=policy.algo,
                            vecnormalize=spec.vecnormalize,
@@ -64,11 +67,39 @@ def policy_specs(
     return specs
 
 
-def _shipped(given: str) -> Path | None:
-    """The ``model.zip`` of the shipped model named ``given`` (when no such file exists)."""
-    from srpb_gym.models import model_path
+def _model_file(given: str) -> tuple[str, tuple[str, ...]]:
+    """The model file that ``--policy`` names and the parts of the path that name it,
+    last first: a file (its stem, then its folders), a ``srpb-gym train`` run folder (its
+    ``model.zip``; the folder's name, then those above it) or a shipped model's short
+    name (that name alone). A name that is none of them is returned as it is, for
+    :func:`load_policy` to report."""
+    from srpb_gym.models import MODEL_FILE, model_path
 
-    return None if os.path.isfile(given) else model_path(given)
+    if os.path.isdir(given):
+        path = os.path.join(given, MODEL_FILE)
+        if not os.path.isfile(path):
+            raise InputError(f"a folder without {MODEL_FILE}: give the model file (.zip) of "
+                             "the run", given, key="--policy")  # fmt: skip
+        return path, tuple(reversed(Path(given).resolve().parts[1:]))
+    shipped = None if os.path.isfile(given) else model_path(given)
+    if shipped is not None:
+        return os.fspath(shipped), (given,)
+    path = Path(given)
+    return given, (path.stem, *reversed(path.resolve().parent.parts[1:]))
+
+
+def unique_names(parts: Sequence[Sequence[str]]) -> list[str]:
+    """A name for each path, from its parts (last first): the last part, and as many of
+    those before it, joined by '-', as it takes to tell it from the others' names. Paths
+    that no part tells apart (one file given twice) keep their longest names."""
+    depth = [1] * len(parts)
+    while True:
+        names = ["-".join(reversed(p[:d])) for p, d in zip(parts, depth)]
+        grow = [i for i, n in enumerate(names) if names.count(n) > 1 and depth[i] < len(parts[i])]
+        if not grow:
+            return names
+        for i in grow:
+            depth[i] += 1
 
 
 def _policy_spec(

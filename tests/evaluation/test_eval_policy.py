@@ -92,6 +92,57 @@ def test_train_layout_and_none_found(models, tmp_path):
     assert raw.vecnormalize is None
 
 
+def _run(folder: Path, models: Path) -> Path:
+    folder.mkdir(parents=True)
+    shutil.copy(models / "ppo.zip", folder / "model.zip")
+    shutil.copy(models / "vecnormalize.pkl", folder / "vecnormalize.pkl")
+    return folder
+
+
+def test_run_folders_and_the_names_that_tell_policies_apart(models, tmp_path, capsys):
+    a, b = tmp_path / "runs" / "a", tmp_path / "runs" / "b"
+    for folder in (a, a / "best", b / "best"):
+        _run(folder, models)
+    c = _run(tmp_path / "runs" / "c", models)
+    config = _resolve(tmp_path, a, a / "best", b / "best", models / "ppo.zip", c / "model.zip")
+    assert [s.name for s in config.planners] == ["a", "a-best", "b-best", "ppo", "model"]
+    assert [str(s.policy) for s in config.planners[:3]] == [
+        str(f / "model.zip") for f in (a, a / "best", b / "best")
+    ]
+    assert [s.vecnormalize for s in config.planners[:3]] == [
+        str(f / "vecnormalize.pkl") for f in (a, a / "best", b / "best")
+    ]
+    # two files whose stems and folders agree up to a higher folder
+    x, y = (
+        _run(tmp_path / "x" / "run" / "best", models),
+        _run(tmp_path / "y" / "run" / "best", models),
+    )
+    config = _resolve(tmp_path, x / "model.zip", y / "model.zip")
+    assert [s.name for s in config.planners] == ["x-run-best-model", "y-run-best-model"]
+    # two files of one stem: <folder>-<stem>, as before
+    shutil.copy(models / "ppo.zip", tmp_path / "ppo.zip")
+    config = _resolve(tmp_path, models / "ppo.zip", tmp_path / "ppo.zip")
+    assert [s.name for s in config.planners] == [f"{models.name}-ppo", f"{tmp_path.name}-ppo"]
+    out = tmp_path / "eval"
+    assert main(["eval", "--env", ENV, "--policy", str(a), "--episodes", "1",
+                 "--out", str(out)]) == 0  # fmt: skip
+    assert (f"srpb-gym: note: policy a: PPO model (read from the file); observations "
+            f"normalised with {a / 'vecnormalize.pkl'}\n") in capsys.readouterr().err  # fmt: skip
+    assert json.loads((out / "config.json").read_text())["planners"][0]["name"] == "a"
+
+
+def test_a_folder_without_a_model_and_a_model_given_twice_are_refused(models, tmp_path, capsys):
+    run = _run(tmp_path / "run", models)
+    (tmp_path / "empty").mkdir()
+    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "empty"),
+                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert _error(capsys) == (f"{tmp_path / 'empty'}: --policy: a folder without model.zip: "
+                              "give the model file (.zip) of the run")  # fmt: skip
+    assert main(["eval", "--env", ENV, "--policy", str(run), str(run / "model.zip"),
+                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert _error(capsys) == f"{run / 'model.zip'}: --policy: the same model is given twice"
+
+
 def test_algorithm_is_read_from_the_file(models, tmp_path, capsys):
     assert _resolve(tmp_path, models / "sac.zip").planners[0].algo == "SAC"
     forced = _resolve(tmp_path, models / "ppo.zip", policy_algo="a2c").planners[0]
