@@ -54,7 +54,7 @@ def policy_specs(
         if file in files[:i]:
             raise InputError("the same model is given twice", paths[i], key="--policy")
     specs = []
-    for (path, _), name in zip(resolved, unique_names([parts for _, parts in resolved])):
+    for (path, _), name in zip(resolved, _unique_names([parts for _, parts in resolved])):
         spec = _policy_spec(name, path, algo, vecnormalize, probe.envs)
         policy = load_policy(spec)
         spec = PlannerSpec(name=spec.name, policy=spec.policy, algo=policy.algo,
@@ -80,7 +80,7 @@ def _model_file(given: str) -> tuple[str, tuple[str, ...]]:
         if not os.path.isfile(path):
             raise InputError(f"a folder without {MODEL_FILE}: give the model file (.zip) of "
                              "the run", given, key="--policy")  # fmt: skip
-        return path, tuple(reversed(Path(given).resolve().parts[1:]))
+        return path, tuple(reversed(Path(given).resolve().parts[1:])) or (Path(path).stem,)
     shipped = None if os.path.isfile(given) else model_path(given)
     if shipped is not None:
         return os.fspath(shipped), (given,)
@@ -88,10 +88,11 @@ def _model_file(given: str) -> tuple[str, tuple[str, ...]]:
     return given, (path.stem, *reversed(path.resolve().parent.parts[1:]))
 
 
-def unique_names(parts: Sequence[Sequence[str]]) -> list[str]:
-    """A name for each path, from its parts (last first): the last part, and as many of
-    those before it, joined by '-', as it takes to tell it from the others' names. Paths
-    that no part tells apart (one file given twice) keep their longest names."""
+def _unique_names(parts: Sequence[Sequence[str]]) -> list[str]:
+    """A name for each path, from its parts (last first): its first part (a file's stem,
+    a folder's or a shipped model's name), then as many of the folders above it, joined
+    by '-', as it takes to tell it from the others' names. Paths that no part tells apart
+    (``a/b.zip`` and the folder ``a/b``) keep their longest names."""
     depth = [1] * len(parts)
     while True:
         names = ["-".join(reversed(p[:d])) for p, d in zip(parts, depth)]
