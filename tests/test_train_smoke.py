@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import shlex
 
 import pytest
 import yaml
@@ -62,13 +63,16 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
     assert (out / "eval" / "step_000001024" / "episodes.csv").is_file()  # the latest
     assert len(list((out / "eval").iterdir())) <= 2  # and the best
 
-    rc = main(["eval", "--env", "SRPB-Corridor-v0", "--policy", str(out / "model.zip"),
-               "--episodes", "1", "--warmup", "0", "--out", str(tmp_path / "eval")])  # fmt: skip
+    # the command the run prints evaluates its best checkpoint
+    hint = next(line for line in captured.out.splitlines() if line.startswith("evaluate it: "))
+    words = shlex.split(hint.removeprefix("evaluate it: "))
+    assert words == ["srpb-gym", "eval", "--env", "SRPB-Corridor-v0", "--policy", str(out / "best")]
+    rc = main([*words[1:], "--episodes", "1", "--warmup", "0", "--out", str(tmp_path / "eval")])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
-    assert f"observations normalised with {out / 'vecnormalize.pkl'}" in captured.err
+    assert f"observations normalised with {out / 'best' / 'vecnormalize.pkl'}" in captured.err
     with open(tmp_path / "eval" / "episodes.csv", newline="") as f:
-        assert [r["planner"] for r in csv.DictReader(f)] == ["model"]
+        assert [r["planner"] for r in csv.DictReader(f)] == ["best"]
 
 
 def test_ctrl_c_saves_a_usable_model(tmp_path, monkeypatch):
@@ -428,3 +432,31 @@ def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monk
     assert sorted(p.name for p in (tmp_path / "checkpoints").iterdir()) == ["step_000000600"]
     with open(tmp_path / "evaluations.csv", newline="") as f:
         assert [r["step"] for r in csv.DictReader(f)] == [str(s) for s in range(100, 700, 100)]
+
+
+def test_the_printed_eval_command_keeps_what_the_spaces_need(tmp_path):
+    """The mixture is evaluated on its scenarios, a scenario file as a file; the env
+    kwargs that evaluation needs are kept (and read back the same), training's own are
+    not; without best/ the final model is evaluated."""
+    from srpb_gym.training.cli import eval_command
+    from srpb_gym.training.config import parse_overrides
+
+    kwargs = {"weights": [1, 1, 3, 2, 3], "reward_weights": {"psi": -1.0},
+              "observation": {"people": 4, "goal_scale": 12.5}, "time_limit": 30.0}  # fmt: skip
+    words = shlex.split(eval_command("SRPB-Mix-v0", kwargs, str(tmp_path / "a b")))
+    assert words[:3] == ["srpb-gym", "eval", "--env"]
+    assert words[3:8] == [
+        "SRPB-Corridor-v0", "SRPB-FFormation-v0", "SRPB-Crossing-v0", "SRPB-Crowd-v0",
+        "SRPB-Doorway-v0",
+    ]  # fmt: skip
+    assert words[8:10] == ["--policy", str(tmp_path / "a b")]
+    assert words[10] == "--env-kwargs"
+    assert parse_overrides(words[11:], "--env-kwargs") == {
+        "observation": {"people": 4, "goal_scale": 12.5}, "time_limit": 30.0
+    }  # fmt: skip
+    (tmp_path / "best").mkdir()
+    (tmp_path / "best" / "model.zip").write_bytes(b"")
+    scenario = "envs/doorway.yaml"
+    assert shlex.split(eval_command("SRPB-Custom-v0", {"scenario": scenario}, str(tmp_path))) == [
+        "srpb-gym", "eval", "--env", scenario, "--policy", str(tmp_path / "best")
+    ]  # fmt: skip

@@ -4,6 +4,8 @@ training.train``). stable-baselines3 and torch are imported only when it runs.""
 from __future__ import annotations
 
 import argparse
+import os
+import shlex
 import sys
 from typing import Any
 
@@ -27,8 +29,8 @@ def add_train_command(subparsers: Any) -> None:
             "vecnormalize.pkl, best/ (the best periodic evaluation), config.yaml, "
             "command.txt, run.json (seed, versions, machine, wall time), progress.csv and "
             "TensorBoard logs (tb/: every reward term, every srpb/* metric, eval/*). "
-            "Ctrl-C or SIGTERM saves the model and stops. Evaluate with "
-            "`srpb-gym eval --policy RUN/model.zip`."
+            "Ctrl-C or SIGTERM saves the model and stops. At the end it prints the "
+            "`srpb-gym eval` command of the run's best checkpoint (`--policy RUN/best`)."
         ),
     )
     p.add_argument("--env", required=True, metavar="ID", help="environment id, e.g. SRPB-Crowd-v0")
@@ -76,4 +78,29 @@ def run_train(args: argparse.Namespace) -> int:
                    log=lambda line: print(f"srpb-gym: {line}", file=sys.stderr))  # fmt: skip
     state = "interrupted" if result.interrupted else "finished"
     print(f"{state} after {result.steps} steps in {result.wall_time:.0f} s; run in {result.out}")
+    print(f"evaluate it: {eval_command(args.env, env_kwargs, result.out)}")
     return 130 if result.interrupted else 0
+
+
+def eval_command(env_id: str, env_kwargs: dict[str, Any], out: str) -> str:
+    """The ``srpb-gym eval`` command of a run: its best checkpoint (``best/``, or the final
+    model when there is none) on what its periodic evaluations run (the mixture's
+    scenarios, a scenario file, the id itself), with the environment's keyword arguments
+    that are not training's alone."""
+    from srpb_gym.training.run import eval_setup
+
+    env_ids, kwargs = eval_setup(env_id, env_kwargs)
+    best = os.path.join(out, "best")
+    policy = best if os.path.isfile(os.path.join(best, "model.zip")) else out
+    words = ["srpb-gym", "eval", "--env", *env_ids, "--policy", policy]
+    if kwargs:
+        words += ["--env-kwargs"] + [f"{key}={_yaml_flow(value)}" for key, value in kwargs.items()]
+    return shlex.join(words)
+
+
+def _yaml_flow(value: Any) -> str:
+    """``value`` in YAML's flow style, on one line, as ``--env-kwargs`` reads it."""
+    import yaml
+
+    text = yaml.safe_dump(value, default_flow_style=True, width=1 << 30)
+    return text.removesuffix("...\n").strip()  # a scalar document ends with '...'
