@@ -72,20 +72,21 @@ def _model_file(given: str) -> tuple[str, tuple[str, ...]]:
     last first: a file (its stem, then its folders), a ``srpb-gym train`` run folder (its
     ``model.zip``; the folder's name, then those above it) or a shipped model's short
     name (that name alone). A name that is none of them is returned as it is, for
-    :func:`load_policy` to report."""
-    from srpb_gym.models import MODEL_FILE, model_path
+    :func:`load_policy` to report. The file is found as ``--init`` and
+    ``pretrain_teachers`` find theirs (:func:`srpb_gym.models.find_model`)."""
+    from srpb_gym.models import MODEL_FILE, find_model
 
-    if os.path.isdir(given):
-        path = os.path.join(given, MODEL_FILE)
-        if not os.path.isfile(path):
-            raise InputError(f"a folder without {MODEL_FILE}: give the model file (.zip) of "
-                             "the run", given, key="--policy")  # fmt: skip
+    folder = os.path.isdir(given)
+    if folder and not os.path.isfile(os.path.join(given, MODEL_FILE)):
+        raise InputError(f"a folder without {MODEL_FILE}: give the model file (.zip) of "
+                         "the run", given, key="--policy")  # fmt: skip
+    path = find_model(given)
+    if path is not None and folder:
         return path, tuple(reversed(Path(given).resolve().parts[1:])) or (Path(path).stem,)
-    shipped = None if os.path.isfile(given) else model_path(given)
-    if shipped is not None:
-        return os.fspath(shipped), (given,)
-    path = Path(given)
-    return given, (path.stem, *reversed(path.resolve().parent.parts[1:]))
+    if path is not None and not os.path.isfile(given):
+        return path, (given,)  # a shipped model's short name
+    file = Path(given)
+    return given, (file.stem, *reversed(file.resolve().parent.parts[1:]))
 
 
 def _unique_names(parts: Sequence[Sequence[str]]) -> list[str]:

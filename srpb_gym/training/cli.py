@@ -87,11 +87,12 @@ def eval_command(env_id: str, env_kwargs: dict[str, Any], out: str) -> str:
     model when there is none) on what its periodic evaluations run (the mixture's
     scenarios, a scenario file, the id itself), with the environment's keyword arguments
     that are not training's alone."""
+    from srpb_gym.models import MODEL_FILE
     from srpb_gym.training.run import eval_setup
 
     env_ids, kwargs = eval_setup(env_id, env_kwargs)
     best = os.path.join(out, "best")
-    policy = best if os.path.isfile(os.path.join(best, "model.zip")) else out
+    policy = best if os.path.isfile(os.path.join(best, MODEL_FILE)) else out
     words = ["srpb-gym", "eval", "--env", *env_ids, "--policy", policy]
     if kwargs:
         words += ["--env-kwargs"] + [f"{key}={_yaml_flow(value)}" for key, value in kwargs.items()]
