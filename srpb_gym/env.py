@@ -27,6 +27,7 @@ from srpb_gym.episode_setup import (
 )
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import MetricParams
+from srpb_gym.observation import ObservationConfig
 from srpb_gym.planners.base import Knowledge
 from srpb_gym.scenarios import load_scenario
 from srpb_gym.sim.layout import EpisodeLayout
@@ -72,7 +73,7 @@ class SRPBNavEnv(gym.Env):
     | 5 | measured vx | m/s | / 0.5 (the largest speed) |
     | 6 | measured vy (0 for a differential drive) | m/s | / 0.3 (vy_max) |
     | 7 | measured omega | rad/s | / 1.05 |
-    | 8 .. 8+L-1 | shortest lidar range of each of L sectors, right to left | m | / 25 |
+    | 8 .. 8+L-1 | shortest lidar range of each of L sectors, right to left | m | / 25 (below) |
     | 8+L+7j+0, +1 | tracked person j (nearest first): relative x, y | m | / 8 (``people_range``) |
     | 8+L+7j+2, +3 | its velocity relative to the robot, x, y | m/s | / 2 (``speed_scale``) |
     | 8+L+7j+4, +5 | its position standard deviation along x, y | m | / 1 (``uncertainty_scale``) |
@@ -80,7 +81,12 @@ class SRPBNavEnv(gym.Env):
 
     ``observation={"type": "dict"}``: ``Dict`` with ``goal`` (5,), ``velocity`` (3,),
     ``lidar`` (L,), ``people`` (K, 6) and ``people_mask`` (K,), the same values. Other keys
-    of the mapping (``lidar_bins``, ``people``, the scales) change L, K and the scales.
+    of the mapping (``lidar_bins``, ``people``, the scales) change L, K and the scales;
+    ``lidar_encoding="log"`` encodes the lidar as log(r / 0.05 m) / log(25 m / 0.05 m)
+    (the lidar's range_min and range_max) instead of r / 25 m: 2.5 cm at 0.3 m move it by
+    0.013 instead of 0.001, so that a policy can tell the clearance of a door. Models trained
+    by ``srpb-gym train`` record these settings and are only evaluated in an environment
+    that observes as they did (:mod:`srpb_gym.planners.learned`).
 
     ## Rewards
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,
@@ -157,7 +163,8 @@ class SRPBNavEnv(gym.Env):
       so that every SRPB metric is exercised, and corridor and fformation were given
       five times the ``srpb`` social and obstacle weights: returns and metrics of
       earlier v0 builds are not comparable with these. The ``approach`` term was added
-      with weight 0 in both presets (their rewards unchanged).
+      with weight 0 in both presets (their rewards unchanged). The observation setting
+      ``lidar_encoding`` was added; its default ``"linear"`` is the observation as before.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -203,6 +210,11 @@ class SRPBNavEnv(gym.Env):
     def params(self) -> MetricParams:
         """The SRPB metric parameters of the episodes (also the reward's)."""
         return self.task.params
+
+    @property
+    def observation_config(self) -> ObservationConfig:
+        """What the robot observes: the resolved ``observation`` argument."""
+        return self.task.obs_builder.config
 
     @property
     def semantics(self) -> str:

@@ -36,6 +36,7 @@ from srpb_gym.episode_setup import (
     planning_seconds,
 )
 from srpb_gym.errors import InputError
+from srpb_gym.observation import ObservationConfig
 from srpb_gym.planners.base import Knowledge
 from srpb_gym.scenarios import load_scenario
 from srpb_gym.sim.robot import RobotConfig
@@ -152,6 +153,11 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         self._renderer = None
 
     # ------------------------------------------------------------------ spaces
+    @property
+    def observation_config(self) -> ObservationConfig:
+        """What every robot observes: the resolved ``observation`` argument."""
+        return self.tasks[0].obs_builder.config
+
     def observation_space(self, agent: str) -> gym.Space:
         return self.observation_spaces[agent]
 

@@ -132,7 +132,7 @@ class RobotTask:
         cfg = sim.robot_config
         self.obs_builder = ObservationBuilder(
             observation, sim.lidar_config.n_beams, sim.lidar_config.range_max,
-            max(cfg.v_max, -cfg.v_min), cfg.vy_max, cfg.w_max,
+            max(cfg.v_max, -cfg.v_min), cfg.vy_max, cfg.w_max, sim.lidar_config.range_min,
         )  # fmt: skip
         self.observation_space = self.obs_builder.space
         self.action_space = gym.spaces.Box(-1.0, 1.0, (cfg.action_dims,), np.float32)
@@ -257,7 +257,7 @@ class RobotTask:
             goal_yaw_tolerance=self.params.goal_tolerance_yaw, tracks=state.tracker.tracks(),
             scan=state.scan.copy(), scan_angles=state.lidar.angles,
             range_max=sim.lidar_config.range_max, robot=sim.robot_config,
-            control_dt=sim.config.control_dt, t=sim.t,
+            control_dt=sim.config.control_dt, t=sim.t, range_min=sim.lidar_config.range_min,
         )  # fmt: skip
 
     def write(self, base: str) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import itertools
 
 import gymnasium as gym
@@ -33,7 +34,8 @@ def test_unknown_names_are_not_models():
 @pytest.mark.parametrize("name", model_names())
 def test_model_loads_matches_spaces_and_acts(name):
     pytest.importorskip("stable_baselines3")
-    from srpb_gym.planners.learned import LearnedPolicy, find_vecnormalize
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import LearnedPolicy, find_vecnormalize, observation_config_of
 
     facts = card(name)
     assert set(facts) >= CARD_KEYS and facts["name"] == name
@@ -49,9 +51,15 @@ def test_model_loads_matches_spaces_and_acts(name):
     vecnormalize = find_vecnormalize(path)
     assert vecnormalize is not None, "normalisation statistics missing"
     policy = LearnedPolicy(path, vecnormalize=vecnormalize)
+    # the model records how it observed, and its card's env kwargs say the same
+    observation = facts["env_kwargs"].get("observation")
+    trained = dataclasses.asdict(ObservationConfig.from_spec(observation))
+    assert policy.trained_observation == trained
+    kwargs = {} if observation is None else {"observation": observation}
     for env_id in eval_env_ids(facts["env"]):
-        env = gym.make(env_id)
+        env = gym.make(env_id, **kwargs)
         policy.check_spaces(env.observation_space, env.action_space)
+        assert policy.observation_config == observation_config_of(env)
         obs, _ = env.reset(seed=0)
         for _ in range(5):
             action = policy.act(obs, env.unwrapped.knowledge())
@@ -273,6 +281,7 @@ def _fake_run(run, best: bool, interrupted: bool = False, weights=None):
 
 
 def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
+    from srpb_gym.observation import ObservationConfig
     from training import ship
 
     def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
@@ -281,11 +290,15 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
                       "m_psi": 10.0, "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0}
                 for env in env_ids}  # fmt: skip
 
+    stamped = []
     monkeypatch.setattr(ship, "evaluate", evaluate)
     monkeypatch.setattr(ship, "MODELS_DIR", tmp_path / "models")
+    monkeypatch.setattr(ship, "stamp_observation", lambda *args: stamped.append(args))
     _fake_run(tmp_path / "run", best=True, interrupted=True)
     card = ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, False, validate=50)
     shipped = tmp_path / "models" / "ppo-corridor-srpb"
+    # the packaged model is given the observation settings of the run's env kwargs
+    assert stamped == [(shipped / "model.zip", ObservationConfig())]
     assert (shipped / "model.zip").read_text() == "model in run"  # the final model
     assert card["checkpoint"] == "final" and card["validation"]["chosen"] == "final"
     text = (shipped / "card.md").read_text()

@@ -294,6 +294,31 @@ def test_empty_people_slots_are_zero_and_values_clip():
     assert obs[8 + 2 + 7 :].tolist() == [0.0] * 7
 
 
+def test_log_lidar_encoding_by_hand():
+    """log(r / range_min) / log(range_max / range_min) of each sector's shortest range, the
+    rest of the observation as with the linear encoding; readings below range_min read 0."""
+    cfg = ObservationConfig(lidar_bins=4, people=3, lidar_encoding="log")
+    builder = ObservationBuilder(cfg, 8, 10.0, 0.5, 0.3, 1.0, range_min=0.1)
+    linear = ObservationBuilder(ObservationConfig(lidar_bins=4, people=3), 8, 10.0, 0.5, 0.3,
+                                1.0, range_min=0.1)  # fmt: skip
+    pose, goal, velocity = np.array([1.0, 2.0, 0.3]), np.array([4.0, 5.0, 0.0]), np.zeros(3)
+    scan = np.array([5.0, 2.0, 10.0, 10.0, 1.0, 3.0, 7.0, 0.05])
+    obs = builder.build(pose, goal, velocity, scan, hand_tracks())
+    # shortest of two beams each: 2, 10, 1 and 0.05 (below range_min: read as 0.1)
+    expected = [math.log(2.0 / 0.1) / math.log(100.0), 1.0, 0.5, 0.0]
+    np.testing.assert_allclose(obs[8:12], expected, atol=1e-6)
+    plain = linear.build(pose, goal, velocity, scan, hand_tracks())
+    assert np.array_equal(np.delete(obs, range(8, 12)), np.delete(plain, range(8, 12)))
+    # 2.5 cm at 0.3 m from a 25 m lidar: 0.001 linear, 0.013 logarithmic
+    near = ObservationBuilder(ObservationConfig(lidar_bins=1, people=0, lidar_encoding="log"),
+                              1, 25.0, 0.5, 0.3, 1.0)  # fmt: skip
+    lo, hi = (near.build(pose, goal, velocity, np.array([r]), hand_tracks())[8]
+              for r in (0.3, 0.325))  # fmt: skip
+    assert 0.0125 < hi - lo < 0.0135
+    with pytest.raises(ValueError, match="lidar_encoding must be one of"):
+        ObservationConfig(lidar_encoding="sqrt")
+
+
 # ------------------------------------------------------------------ robot settings
 def test_robot_settings_drive_the_metric_parameters():
     big = RobotConfig(radius=0.45, v_max=0.8)

@@ -4,6 +4,7 @@ Ctrl-C and the wall-clock limit still save a usable model."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import shlex
 
@@ -258,7 +259,8 @@ def test_init_starts_from_a_trained_model(tmp_path):
     from stable_baselines3.common.vec_env import VecNormalize
 
     from srpb_gym.errors import InputError
-    from srpb_gym.planners.learned import load_vecnormalize
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import OBSERVATION_RECORD, load_vecnormalize
     from srpb_gym.training.run import _load_init, make_vec_env, resolve_init
 
     small = {"n_timesteps": 256, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
@@ -272,7 +274,7 @@ def test_init_starts_from_a_trained_model(tmp_path):
 
     venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, {"reward": "srpb"}, 1))
     model = PPO("MlpPolicy", venv, seed=1, **config.ppo_kwargs())
-    _load_init(model, venv, path, stats)
+    _load_init(model, venv, path, stats, ObservationConfig())
     trained = PPO.load(path).policy.state_dict()
     for key, value in model.policy.state_dict().items():
         np.testing.assert_array_equal(value.numpy(), trained[key].numpy(), err_msg=key)
@@ -285,6 +287,14 @@ def test_init_starts_from_a_trained_model(tmp_path):
     init = json.loads((tmp_path / "b" / "run.json").read_text())["init"]
     assert init["model"] == path and init["steps"] == first.steps == 256
     assert second.steps == 256 and lines[0].startswith("starting from")
+    # every saved model says how it observed; a start that observed otherwise is refused
+    assert getattr(PPO.load(path), OBSERVATION_RECORD) == dataclasses.asdict(ObservationConfig())
+    with pytest.raises(InputError, match=r"trained with observation=\{lidar_encoding: linear\}, "
+                       r"the environment has observation=\{lidar_encoding: log\}"):  # fmt: skip
+        train("SRPB-Corridor-v0", config, out=str(tmp_path / "f"), progress=False,
+              log=lambda line: None, init=first.out,
+              env_kwargs={"observation": {"lidar_encoding": "log"}})  # fmt: skip
+    assert not (tmp_path / "f").exists()
 
     with pytest.raises(InputError, match="do not fit"):
         train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small, "net_arch": [8]}),
@@ -366,8 +376,8 @@ def test_periodic_evaluation_runs_the_scenarios_trained_on(
 
 def test_periodic_evaluation_uses_the_env_kwargs(tmp_path, capsys):
     """Env kwargs that change what the policy sees (here three people slots instead of six)
-    reach the periodic evaluation; `srpb-gym eval` takes them too, and refuses the model
-    without them."""
+    reach the periodic evaluation; `srpb-gym eval` takes them too, and without them the
+    model observes with the settings it records: the same episode, said in a note."""
     out = tmp_path / "run"
     rc = main(["train", "--env", "SRPB-Corridor-v0", "--reward", "task", "--steps", "256",
                "--hyperparams", *SMALL, "n_envs=1", "n_steps=256", "eval_freq=256",
@@ -382,9 +392,13 @@ def test_periodic_evaluation_uses_the_env_kwargs(tmp_path, capsys):
     assert main([*args, "--out", str(tmp_path / "e1"),
                  "--env-kwargs", "observation={people: 3}"]) == 0  # fmt: skip
     capsys.readouterr()
-    assert main([*args, "--out", str(tmp_path / "e2")]) == 2
-    err = capsys.readouterr().err
-    assert "--policy" in err and "observation" in err and "(SRPB-Corridor-v0)" in err, err
+    assert main([*args, "--out", str(tmp_path / "e2")]) == 0
+    assert ("it observes with its own settings observation={people: 3} (the environments': "
+            "{people: 6})") in capsys.readouterr().err  # fmt: skip
+    first, second = (next(csv.DictReader((tmp_path / e / "episodes.csv").open()))
+                     for e in ("e1", "e2"))  # fmt: skip
+    for key in ("is_success", "m_mef", "m_plin", "m_chc", "m_psi", "m_obs"):
+        assert first[key] == second[key], key
 
 
 def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monkeypatch):

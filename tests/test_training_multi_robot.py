@@ -60,6 +60,12 @@ def test_train_then_evaluate(tmp_path, capsys):
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
     assert {p.name for p in out.iterdir()} == {"model.zip", "vecnormalize.pkl", "run.json"}
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from srpb_gym.planners.learned import OBSERVATION_RECORD
+
+    data = load_from_zip_file(out / "model.zip", load_data=True)[0]
+    assert data[OBSERVATION_RECORD]["lidar_encoding"] == "linear"  # what the robots observed
     code = cli_main(["eval", "--env", "SRPB-Corridor-v0", "--robots", "2", "--policy",
                      str(out / "model.zip"), "--episodes", "2", "--warmup", "5", "--out",
                      str(tmp_path / "eval")])  # fmt: skip

@@ -37,6 +37,7 @@ from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices
 
 import srpb_gym
 from srpb_gym.pettingzoo_env import SRPBParallelEnv
+from srpb_gym.planners.learned import record_observation
 from srpb_gym.registration import SCENARIO_IDS
 
 
@@ -138,6 +139,7 @@ def train(
     venv = VecNormalize(VecMonitor(venv), norm_reward=True)
     model = PPO("MlpPolicy", venv, n_steps=max(64, 2048 // venv.num_envs), batch_size=64,
                 seed=seed, verbose=0)  # fmt: skip
+    record_observation(model, venv.unwrapped.envs[0].observation_config)
     started = time.perf_counter()
     model.learn(total_timesteps=steps)
     model.save(folder / "model.zip")

@@ -32,6 +32,8 @@ import yaml
 
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
+from srpb_gym.observation import ObservationConfig
+from srpb_gym.planners.learned import stamp_observation
 from srpb_gym.training.callbacks import eval_score, summarize_results
 from srpb_gym.training.run import eval_setup, reward_weights
 
@@ -294,6 +296,10 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     for file in ("model.zip", "vecnormalize.pkl"):  # no statistics without normalize
         if (checkpoint / file).is_file():
             shutil.copyfile(checkpoint / file, target / file)
+    # a model trained before models carried their observation settings gets them here
+    stamp_observation(
+        target / "model.zip", ObservationConfig.from_spec((env_kwargs or {}).get("observation"))
+    )
     if (run / "evaluations.csv").is_file():
         shutil.copyfile(run / "evaluations.csv", target / "evaluations.csv")
     card = {

@@ -5,7 +5,9 @@ For every model file (or ``srpb-gym train`` run folder, or short name of a shipp
 takes the forced one), finds its observation-normalisation statistics (or says that none
 were found), loads both once and checks the model's observation and action spaces
 against every environment's, so that a run never evaluates a model on observations it
-was not trained for.
+was not trained for (a model that records its observation settings observes with them:
+:class:`~srpb_gym.planners.learned.LearnedPolicy`; the note says so where they differ
+from the environments').
 stable-baselines3 and torch are imported only here, and only when a policy is given.
 """
 
@@ -61,7 +63,11 @@ def policy_specs(
                            vecnormalize=spec.vecnormalize,
                            vecnormalize_searched=spec.vecnormalize_searched)  # fmt: skip
         how = "forced by --policy-algo" if algo is not None else "read from the file"
-        note(f"note: policy {name}: {policy.algo} model ({how}); " + _normalisation(spec))
+        note(
+            f"note: policy {name}: {policy.algo} model ({how}); "
+            + _normalisation(spec)
+            + _observes(policy, probe)
+        )
         _check_spaces(policy, probe)
         specs.append(spec)
     return specs
@@ -124,6 +130,24 @@ def _normalisation(spec: PlannerSpec) -> str:
         return ("no vecnormalize.pkl found (looked for "
                 f"{', '.join(spec.vecnormalize_searched)}): raw observations")  # fmt: skip
     return "raw observations (--vecnormalize none)"
+
+
+def _observes(policy: LearnedPolicy, probe: EvalConfig) -> str:
+    """How the policy observes, when its recorded settings differ from the environments'."""
+    from srpb_gym.planners.learned import observation_config_of, settings_text
+
+    own = policy.observation_config
+    env = probe.make_env(probe.envs[0], render=False)
+    try:
+        given = observation_config_of(env)
+    finally:
+        env.close()
+    if own is None or given is None or own == given:
+        return ""
+    return (
+        f"; it observes with its own settings observation={settings_text(own, given)} "
+        f"(the environments': {settings_text(given, own)})"
+    )
 
 
 def _check_spaces(policy: LearnedPolicy, probe: EvalConfig) -> None:

@@ -29,7 +29,8 @@ class Knowledge:
     ``pose`` (x, y, yaw), ``velocity`` measured body-frame (vx, vy, omega), ``command`` the
     last command sent (vx, vy, omega), ``goal`` (x, y, yaw), ``goal_tolerance`` [m].
     ``tracks``: the tracker's people (ids, xy, velocity, yaw, 2x2 covariance, ...).
-    ``scan`` lidar ranges [m] at ``scan_angles`` (relative to the heading), ``range_max``.
+    ``scan`` lidar ranges [m] at ``scan_angles`` (relative to the heading), ``range_max``
+    and ``range_min`` [m], the lidar's reading limits.
     ``robot``: the base's limits; ``control_dt`` [s]; ``t`` [s] since the episode start.
     """
 
@@ -48,6 +49,7 @@ class Knowledge:
     robot: RobotConfig
     control_dt: float
     t: float
+    range_min: float = 0.0
 
 
 #: Assumed body radius of a tracked person [m], the default of the planners' settings.

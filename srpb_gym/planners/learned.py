@@ -8,10 +8,19 @@ torch come from the ``train`` extra and are imported only when a policy is built
 
 Failures are one line naming the file: :class:`PolicyFileError` for a model that cannot be
 loaded, :class:`VecNormalizeError` for a normalisation file that cannot be used.
+
+A model trained by ``srpb-gym train`` holds the observation settings it was trained with
+(:data:`OBSERVATION_RECORD`, saved in its ``model.zip``), and :class:`LearnedPolicy`
+observes with them, whatever the environment's: it builds its observation from the
+:class:`Knowledge` snapshot (the robot's own pose, scan and tracks) as the environment
+builds its own. Settings that keep the space's shape (``lidar_encoding``, the scales) can
+then never be mixed up, and models trained with different settings are evaluated side by
+side. A model saved without the record acts on the environment's observation.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import pickle
@@ -24,12 +33,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.observation import ObservationBuilder, ObservationConfig
+from srpb_gym.observation import observation_space as observation_space_of
 from srpb_gym.planners.base import Knowledge, Planner
 
 INSTALL_HINT = 'pip install "srpb-gym[train]"'
 ALGORITHMS: tuple[str, ...] = ("PPO", "A2C", "SAC", "TD3", "DDPG", "DQN")
 """stable-baselines3 algorithms a model file may hold (:func:`detect_algorithm`)."""
 VECNORMALIZE = "vecnormalize.pkl"
+OBSERVATION_RECORD = "srpb_observation"
+"""The model attribute (saved in ``model.zip``) holding the :class:`ObservationConfig` a
+model was trained with, as a mapping; a model saved without it acts on the environment's
+observation."""
 
 _POLICY_MODULES = {
     "stable_baselines3.sac.policies": "SAC",
@@ -245,6 +260,75 @@ def load_vecnormalize(path: str | os.PathLike[str]) -> Any:
 
 
 # ---------------------------------------------------------------------------- spaces
+def record_observation(model: Any, config: ObservationConfig) -> None:
+    """Make ``model`` carry ``config`` into every file it is saved to."""
+    setattr(model, OBSERVATION_RECORD, dataclasses.asdict(config))
+
+
+def stamp_observation(path: str | os.PathLike[str], config: ObservationConfig) -> bool:
+    """Give the model file ``path`` the record of ``config`` if it has none (a model saved
+    before records were kept); returns whether the file was rewritten. A record that
+    disagrees with ``config`` is a :class:`PolicyFileError`."""
+    model, _ = load_model(path)
+    trained = getattr(model, OBSERVATION_RECORD, None)
+    if trained is not None:
+        why = observation_mismatch(trained, config)
+        if why is not None:
+            raise PolicyFileError(path, why)
+        return False
+    record_observation(model, config)
+    model.save(os.fspath(path))
+    return True
+
+
+def recorded_observation(trained: Any) -> ObservationConfig:
+    """The :class:`ObservationConfig` of a model's record (a mapping). Settings missing
+    from it take their defaults (every setting added later defaults to what models observed
+    before it); a record that is not a valid one is a ``ValueError`` saying why."""
+    if not isinstance(trained, dict):
+        raise ValueError(f"its observation record is not a mapping ({type(trained).__name__})")
+    known = {f.name for f in dataclasses.fields(ObservationConfig)}
+    unknown = sorted(set(trained) - known)
+    if unknown:
+        raise ValueError("it was trained with observation settings this version does not "
+                         "know: " + ", ".join(unknown))  # fmt: skip
+    try:
+        return ObservationConfig(**trained)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"its observation record is invalid ({exc})") from None
+
+
+def observation_mismatch(trained: Any, given: ObservationConfig) -> str | None:
+    """``None`` when a model trained with the recorded settings ``trained`` (a mapping, or
+    ``None``: no record) observes as ``given`` does; otherwise a sentence naming the
+    settings that differ (or what is wrong with the record)."""
+    if trained is None:
+        return None
+    try:
+        model_config = recorded_observation(trained)
+    except ValueError as exc:
+        return str(exc)
+    if model_config == given:
+        return None
+    return (f"it was trained with observation={settings_text(model_config, given)}, the "
+            f"environment has observation={settings_text(given, model_config)} (make it "
+            f"with observation={settings_text(model_config, given)})")  # fmt: skip
+
+
+def settings_text(config: ObservationConfig, other: ObservationConfig) -> str:
+    """The settings of ``config`` that differ from ``other``'s, in YAML flow style."""
+    names = [f.name for f in dataclasses.fields(ObservationConfig)
+             if getattr(config, f.name) != getattr(other, f.name)]  # fmt: skip
+    return "{" + ", ".join(f"{n}: {getattr(config, n)}" for n in names) + "}"
+
+
+def observation_config_of(env: Any) -> ObservationConfig | None:
+    """The observation settings of an srpb-gym environment (Gymnasium or PettingZoo,
+    wrapped or not); ``None`` for another environment."""
+    config = getattr(getattr(env, "unwrapped", env), "observation_config", None)
+    return config if isinstance(config, ObservationConfig) else None
+
+
 def describe_space(space: Any) -> str:
     """A one-line description of a gymnasium space: kind, shape, dtype and bounds."""
     spaces = getattr(space, "spaces", None)
@@ -278,13 +362,17 @@ def spaces_differ(trained: Any, given: Any) -> bool:
 
 
 class LearnedPolicy(Planner):
-    """A stable-baselines3 model acting on the environment's observation.
+    """A stable-baselines3 model acting on its observation.
 
     ``path``: the model ``.zip``; ``algo``: its algorithm (see :data:`ALGORITHMS`), ``None``
     to read it from the file; ``vecnormalize``: a ``VecNormalize`` file, ``"auto"``
     (default) to look where training puts it (:func:`find_vecnormalize`) or ``None`` for
-    raw observations; ``deterministic``: take the mode of the action distribution. The
-    :class:`Knowledge` snapshot is not used.
+    raw observations; ``deterministic``: take the mode of the action distribution.
+
+    A model that records its observation settings (``observation_config``) observes with
+    them: each step it builds its observation from the :class:`Knowledge` snapshot, exactly
+    as an environment with those settings would, and ignores the environment's. A model
+    without the record acts on the environment's observation.
     """
 
     name = "learned"
@@ -299,6 +387,13 @@ class LearnedPolicy(Planner):
         self.path = os.fspath(path)
         self.deterministic = deterministic
         self.model, self.algo = load_model(self.path, algo)
+        record = getattr(self.model, OBSERVATION_RECORD, None)
+        try:
+            self.observation_config = None if record is None else recorded_observation(record)
+        except ValueError as exc:
+            raise PolicyFileError(self.path, str(exc)) from None
+        self._builder: ObservationBuilder | None = None
+        self._sensors: tuple[float, ...] = ()
         if vecnormalize == "auto":
             vecnormalize = find_vecnormalize(self.path)
         self.vecnormalize = None if vecnormalize is None else os.fspath(vecnormalize)
@@ -314,21 +409,52 @@ class LearnedPolicy(Planner):
                     f"{describe_space(self.model.observation_space)}",
                 )
 
+    @property
+    def trained_observation(self) -> dict[str, Any] | None:
+        """The observation settings the model records (:data:`OBSERVATION_RECORD`), or
+        ``None`` for a model saved without them."""
+        return getattr(self.model, OBSERVATION_RECORD, None)
+
     def check_spaces(self, observation_space: Any, action_space: Any) -> None:
-        """Raise ``ValueError`` (one line naming both spaces) unless the model was trained
-        on these spaces: the same kind, shape and bounds."""
+        """Raise ``ValueError`` (one line naming both spaces) unless the model acts in
+        ``action_space`` and takes the observations it will get: those of
+        ``observation_space`` or, for a model that observes with its recorded settings,
+        those of its settings (the same kind, shape and bounds)."""
+        where = "the environment has"
+        if self.observation_config is not None:
+            observation_space = observation_space_of(self.observation_config)
+            where = "its recorded observation settings give"
         pairs = (("observation", self.model.observation_space, observation_space),
                  ("action", self.model.action_space, action_space))  # fmt: skip
         for what, trained, given in pairs:
             if spaces_differ(trained, given):
                 same = describe_space(trained) == describe_space(given)
+                place = where if what == "observation" else "the environment has"
                 raise ValueError(
                     f"{self.path}: trained for the {what} space {describe_space(trained)}, "
-                    f"the environment has {describe_space(given)}"
-                    + (" (the bounds differ)" if same else "")
+                    f"{place} {describe_space(given)}" + (" (the bounds differ)" if same else "")
                 )
 
+    def reset(self, knowledge: Knowledge) -> None:
+        if self.observation_config is not None:
+            self._observer(knowledge)
+
+    def _observer(self, knowledge: Knowledge) -> ObservationBuilder:
+        """The builder of the model's own observation, for the robot and lidar of
+        ``knowledge`` (made again when they change)."""
+        robot = knowledge.robot
+        sensors = (knowledge.scan.shape[0], knowledge.range_max, max(robot.v_max, -robot.v_min),
+                   robot.vy_max, robot.w_max, knowledge.range_min)  # fmt: skip
+        if self._builder is None or sensors != self._sensors:
+            assert self.observation_config is not None
+            self._builder = ObservationBuilder(self.observation_config, *sensors)
+            self._sensors = sensors
+        return self._builder
+
     def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
+        if self.observation_config is not None:
+            k = knowledge
+            observation = self._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
         if self._normalizer is not None:
             observation = self._normalizer.normalize_obs(observation)
         action, _ = self.model.predict(observation, deterministic=self.deterministic)

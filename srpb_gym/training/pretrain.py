@@ -30,7 +30,9 @@ plus Gaussian noise of standard deviation ``noise``; the recorded target stays t
 teacher's own action, so that the demonstrations also show how to get back from the small
 errors the clone will make. A classical teacher labelling a DAgger round keeps its own
 memory of what it commanded (``dwa``'s previous turn rate, its recovery and impatience
-timers), not of what the clone did; a learned teacher acts on the observation alone.
+timers), not of what the clone did; a learned teacher acts on the observation alone,
+built with its own observation settings where its model records them (a teacher trained
+with ``lidar_encoding: log`` teaches a student that observes linearly, and the reverse).
 """
 
 from __future__ import annotations

@@ -41,6 +41,8 @@ import srpb_gym  # noqa: F401  (registers the ids)
 from srpb_gym.errors import InputError, env_kwargs_error
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
+from srpb_gym.observation import ObservationConfig
+from srpb_gym.planners.learned import observation_mismatch, record_observation
 from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 from srpb_gym.reward import PRESET_GAMMA, TERMS, preset_names, shaping_bound
 from srpb_gym.training.callbacks import (
@@ -278,9 +280,11 @@ def train(
             venv = VecNormalize(venv, gamma=config.gamma)
         model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
                     **config.ppo_kwargs())  # fmt: skip
+        observation = venv.get_attr("observation_config", [0])[0]
+        record_observation(model, observation)
         if init_model is not None:
             try:
-                _load_init(model, venv, *init_model)
+                _load_init(model, venv, *init_model, observation)
             except InputError:  # nothing trained: leave no run folder behind
                 shutil.rmtree(out, ignore_errors=True)
                 raise
@@ -364,10 +368,17 @@ def model_steps(path: str) -> int:
     return int(data.get("num_timesteps", 0))
 
 
-def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None) -> None:
+def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
+               observation: ObservationConfig) -> None:  # fmt: skip
+    from stable_baselines3.common.save_util import load_from_zip_file
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from srpb_gym.planners.learned import load_vecnormalize
+    from srpb_gym.planners.learned import OBSERVATION_RECORD, load_vecnormalize
+
+    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+    why = observation_mismatch(data.get(OBSERVATION_RECORD), observation)
+    if why is not None:
+        raise InputError(f"{path}: {why}", key="--init")
 
     try:
         model.set_parameters(path, exact_match=True, device=model.device)

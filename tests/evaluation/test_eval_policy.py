@@ -3,6 +3,7 @@ where training puts them (and said), spaces checked, every bad file named."""
 
 from __future__ import annotations
 
+import csv
 import json
 import shutil
 import subprocess
@@ -209,3 +210,80 @@ def test_policies_stay_lazy():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.stdout.strip() == "[]", done.stderr
+
+
+def test_a_model_observes_as_it_was_trained(models, tmp_path, capsys):
+    """A model that records its observation settings (here the lidar encoding, which keeps
+    the space's shape) builds its own observation: the same episodes in an environment that
+    observes otherwise, said in the note; a model without a record takes the environment's."""
+    from stable_baselines3 import PPO
+
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import record_observation
+
+    model = PPO.load(models / "ppo.zip", device="cpu")
+    record_observation(model, ObservationConfig(lidar_encoding="log"))
+    folder = tmp_path / "run"
+    folder.mkdir()
+    model.save(folder / "model.zip")
+    shutil.copy(models / "vecnormalize.pkl", folder / "vecnormalize.pkl")
+    shutil.copy(models / "ppo.zip", tmp_path / "plain.zip")
+    shutil.copy(models / "vecnormalize.pkl", tmp_path / "vecnormalize.pkl")
+    args = ["eval", "--env", ENV, "--episodes", "2", "--warmup", "0", "--policy", str(folder),
+            str(tmp_path / "plain.zip")]  # fmt: skip
+    kwargs = ["--env-kwargs", "observation={lidar_encoding: log}"]
+    assert main([*args, "--out", str(tmp_path / "linear")]) == 0
+    err = capsys.readouterr().err
+    assert ("; it observes with its own settings observation={lidar_encoding: log} (the "
+            "environments': {lidar_encoding: linear})") in err  # fmt: skip
+    assert err.count("observes with its own settings") == 1
+    assert main([*args, *kwargs, "--out", str(tmp_path / "log")]) == 0
+    assert "observes with its own settings" not in capsys.readouterr().err
+
+    def rows(out: str) -> dict[tuple[str, str], dict[str, str]]:
+        with open(tmp_path / out / "episodes.csv", newline="") as f:
+            return {(r["planner"], r["seed"]): r for r in csv.DictReader(f)}
+
+    linear, log = rows("linear"), rows("log")
+    for seed in ("0", "1"):
+        a, b = linear[("run", seed)], log[("run", seed)]
+        for key in ("is_success", "m_mef", "m_plin", "m_chc", "m_psi", "m_obs"):
+            assert a[key] == b[key], key
+            # the plain model (the same weights) takes the environment's observation: in
+            # the log environment it drives as the recorded model does in both
+            assert log[("plain", seed)][key] == a[key], key
+    assert any(linear[("plain", s)]["m_chc"] != log[("plain", s)]["m_chc"] for s in "01")
+
+
+def test_observation_records_are_compared_setting_by_setting():
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import observation_mismatch
+
+    default = ObservationConfig()
+    assert observation_mismatch(None, default) is None
+    assert observation_mismatch({"type": "flat"}, default) is None  # missing: the defaults
+    two = observation_mismatch({"people": 4, "goal_scale": 2.0}, default)
+    assert two == ("it was trained with observation={people: 4, goal_scale: 2.0}, the "
+                   "environment has observation={people: 6, goal_scale: 20.0} (make it with "
+                   "observation={people: 4, goal_scale: 2.0})")  # fmt: skip
+    assert observation_mismatch({"history": 4}, default) == (
+        "it was trained with observation settings this version does not know: history"
+    )
+    assert "is invalid" in observation_mismatch({"people": -1}, default)
+    assert "not a mapping" in observation_mismatch(["flat"], default)
+
+
+def test_a_model_without_a_record_is_stamped_once(models, tmp_path):
+    from stable_baselines3 import PPO
+
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import OBSERVATION_RECORD, PolicyFileError, stamp_observation
+
+    path = tmp_path / "model.zip"
+    shutil.copy(models / "ppo.zip", path)
+    log = ObservationConfig(lidar_encoding="log")
+    assert stamp_observation(path, log) is True
+    assert getattr(PPO.load(path), OBSERVATION_RECORD)["lidar_encoding"] == "log"
+    assert stamp_observation(path, log) is False  # already says so: left as it is
+    with pytest.raises(PolicyFileError, match=r"trained with observation=\{lidar_encoding: log\}"):
+        stamp_observation(path, ObservationConfig())
