@@ -62,6 +62,8 @@ def test_spaces_equal_the_gymnasium_envs():
         assert par.observation_space(agent) == single.observation_space
         assert par.action_space(agent) == single.action_space
         assert par.observation_space(agent) is par.observation_space(agent)
+    assert par.observation_config == single.unwrapped.observation_config
+    assert par.observation_config.type == "dict"
 
 
 @pytest.mark.parametrize("scenario", ["crowd", "fformation"])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import itertools
+from pathlib import Path
 
 import gymnasium as gym
 import pytest
@@ -55,6 +56,9 @@ def test_model_loads_matches_spaces_and_acts(name):
     observation = facts["env_kwargs"].get("observation")
     trained = dataclasses.asdict(ObservationConfig.from_spec(observation))
     assert policy.trained_observation == trained
+    text = (Path(path).parent / "card.md").read_text(encoding="utf-8")
+    row = next(line for line in text.splitlines() if line.startswith("| observation |"))
+    assert ("`{lidar_encoding: log}`" in row) == (trained["lidar_encoding"] == "log"), row
     kwargs = {} if observation is None else {"observation": observation}
     for env_id in eval_env_ids(facts["env"]):
         env = gym.make(env_id, **kwargs)
@@ -98,7 +102,8 @@ def test_retraining_commands_follow_each_model_recipe():
         assert f"{scenario}: {teacher}" in teachers
     kwargs = warm[warm.index("--env-kwargs") + 1 : warm.index("--env-kwargs") + 3]
     assert kwargs[0] == "weights=[1, 1, 3, 2, 3]" and kwargs[1].startswith("reward_weights={obs")
-    assert "--env-kwargs" not in plain[0]
+    # both crowd stages observe the lidar log-encoded
+    assert plain[0][plain[0].index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
     start, fine, ship = commands("ppo-crowd-srpb", 60, 0)
     assert start[start.index("--reward") + 1] == "task"
     assert fine[fine.index("--reward") + 1] == "srpb"
@@ -107,6 +112,9 @@ def test_retraining_commands_follow_each_model_recipe():
         start[start.index("--hyperparams") + 1 :] == plain[0][plain[0].index("--hyperparams") + 1 :]
     )
     assert fine[fine.index("--hyperparams") + 1 : fine.index("--init")] == ["learning_rate=5e-5"]
+    for stage in (start, fine):
+        assert stage[stage.index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
+    assert "--env-kwargs" not in commands("ppo-corridor-task", 60, 0)[0]
     first = start[start.index("--out") + 1]
     assert fine[fine.index("--init") + 1] == f"{first}/best"
     minutes = float(start[start.index("--max-minutes") + 1])
@@ -343,8 +351,8 @@ def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):
         init = None if model is None else {"model": model, "steps": 1_100_000}
         (folder / "card.json").write_text(json.dumps({"training": {"init": init}}))
         assert start(folder) == ((0, None) if model is None else (1_100_000, name))
-    shipped = start(MODELS_DIR / "ppo-crowd-srpb")
-    assert shipped[1] == "ppo-crowd-task" and shipped[0] > 0
+    shipped = start(MODELS_DIR / "ppo-crowd-srpb")  # the best/ of ppo-crowd-task's run
+    assert shipped == (card("ppo-crowd-srpb")["training"]["init"]["steps"], "crowd-task-log/best")
 
 
 def test_the_card_names_each_scenario_teacher_of_a_distillation():

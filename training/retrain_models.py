@@ -76,8 +76,14 @@ class RunSettings:
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
 SOCIAL_WARM_START = ("pretrain_planner=social-dwa", "pretrain_episodes=150")
 LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
-#: the generalist's teachers: a specialist per scenario, for crowd the one that reaches
-#: the goal most often (its srpb fine-tune reaches it less often and intrudes as much)
+#: the crowd models observe the lidar log-encoded: with the linear encoding the task
+#: model reached 85 % on the validation seeds (0 % success until 450,000 steps), with the
+#: log encoding 88-90 % (80 % after 300,000 steps), and its srpb fine-tune 95 % against 87 %
+LOG_LIDAR = "observation={lidar_encoding: log}"
+#: the generalist's teachers: a specialist per scenario, for crowd the task model (the
+#: shipped generalist was distilled from the crowd task model shipped before, which
+#: observed the lidar linearly and reached the goal more often than its srpb fine-tune;
+#: a teacher observes with its own settings, so the student's observation is unchanged)
 GENERALIST_TEACHERS = (
     ("corridor", "ppo-corridor-srpb"),
     ("fformation", "ppo-fformation-srpb"),
@@ -116,9 +122,15 @@ RUN_SETTINGS: dict[str, RunSettings] = {
     "ppo-fformation-srpb": RunSettings(
         overrides=(*SOCIAL_WARM_START, *LARGE_ROLLOUT), minutes=10.0, validate=100
     ),
-    "ppo-crowd-task": RunSettings(overrides=("learning_rate=1e-4",), minutes=28.0),
+    "ppo-crowd-task": RunSettings(
+        overrides=("learning_rate=1e-4",), minutes=28.0, env_kwargs=(LOG_LIDAR,)
+    ),
     "ppo-crowd-srpb": RunSettings(
-        overrides=("learning_rate=5e-5",), start="ppo-crowd-task", minutes=32.0, validate=100
+        overrides=("learning_rate=5e-5",),
+        start="ppo-crowd-task",
+        minutes=32.0,
+        validate=100,
+        env_kwargs=(LOG_LIDAR,),
     ),
     "ppo-crossing-srpb": RunSettings(
         overrides=("learning_rate=5e-5", *WARM_START, *LARGE_ROLLOUT),

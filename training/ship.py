@@ -33,7 +33,7 @@ import yaml
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.observation import ObservationConfig
-from srpb_gym.planners.learned import stamp_observation
+from srpb_gym.planners.learned import settings_text, stamp_observation
 from srpb_gym.training.callbacks import eval_score, summarize_results
 from srpb_gym.training.run import eval_setup, reward_weights
 
@@ -67,6 +67,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| environment | `{card['env']}` |",
         f"| reward preset | `{card['reward']}` |",
         f"| reward weights | {_weights_text(card['reward_weights'])} |",
+        f"| observation | {_observation_text(card['env_kwargs'].get('observation'))} |",
         f"| steps | {t['steps']:,} |",
         f"| wall time | {_wall_time(t)} |",
         f"| initial weights | {_start(t)} |",
@@ -92,6 +93,15 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
               f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
               "1000000)."]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _observation_text(spec: Any) -> str:
+    """The observation settings of a card's env kwargs, those that differ from the
+    defaults named, and how the model uses them."""
+    config = ObservationConfig.from_spec(spec)
+    changed = settings_text(config, ObservationConfig())
+    which = "the defaults" if changed == "{}" else f"`{changed}`, the rest the defaults"
+    return f"{which}; the model observes with them wherever it runs"
 
 
 def _trained_weights(config: dict[str, Any]) -> dict[str, dict[str, float]]:
