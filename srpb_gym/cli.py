@@ -322,8 +322,9 @@ def add_eval_command(subparsers: Any) -> None:
                    help="metric parameter preset (default: paper)")  # fmt: skip
     p.add_argument("--env-kwargs", **many, default=[], metavar="KEY=VALUE",
                    help="keyword arguments of every environment, values in YAML, e.g. "
-                        "'crowd={robot_reaction: 0.0}' or the observation a policy was "
-                        "trained with (as srpb-gym train --env-kwargs)")  # fmt: skip
+                        "'crowd={robot_reaction: 0.0}' (as srpb-gym train --env-kwargs); "
+                        "a model of srpb-gym train observes with the observation settings "
+                        "it records")  # fmt: skip
     p.set_defaults(func=run_eval)
 
 

@@ -84,9 +84,10 @@ class SRPBNavEnv(gym.Env):
     of the mapping (``lidar_bins``, ``people``, the scales) change L, K and the scales;
     ``lidar_encoding="log"`` encodes the lidar as log(r / 0.05 m) / log(25 m / 0.05 m)
     (the lidar's range_min and range_max) instead of r / 25 m: 2.5 cm at 0.3 m move it by
-    0.013 instead of 0.001, so that a policy can tell the clearance of a door. Models trained
-    by ``srpb-gym train`` record these settings and are only evaluated in an environment
-    that observes as they did (:mod:`srpb_gym.planners.learned`).
+    0.013 instead of 0.001, so that a policy can tell the clearance of a door (a range_min
+    below range_max / 1000 is taken as range_max / 1000). Models trained by
+    ``srpb-gym train`` record these settings and observe with them in any environment
+    (:mod:`srpb_gym.planners.learned`).
 
     ## Rewards
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,

@@ -18,7 +18,8 @@ whose other elements are 0). Values are clipped to [-1, 1].
 
 ``lidar_encoding``: ``"linear"`` (default) r / range_max, or ``"log"``
 log(r / range_min) / log(range_max / range_min), both in [0, 1] (readings below range_min
-read 0). The linear encoding of a 25 m lidar moves by 0.001 per 2.5 cm: the clearance of a
+read 0; a range_min below range_max / 1000, a lidar reading from 0 m, is taken as
+range_max / 1000). The linear encoding of a 25 m lidar moves by 0.001 per 2.5 cm: the clearance of a
 0.95 m door is below what a policy resolves. The log encoding moves by the same amount for
 the same relative change at every range (0.013 per 2.5 cm at 0.3 m, 0.0016 per 1 %) and
 keeps the far readings.

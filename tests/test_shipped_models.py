@@ -269,15 +269,17 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
     assert seen == [run / "best" / "model.zip", run / "model.zip"]
 
 
-def _fake_run(run, best: bool, interrupted: bool = False, weights=None):
+def _fake_run(run, best: bool, interrupted: bool = False, weights=None, kwargs="{}"):
     """A run folder as srpb-gym train leaves it, with placeholder model files (``weights``:
-    the reward weights its run.json records; ``None``: a run made before they were)."""
+    the reward weights its run.json records; ``None``: a run made before they were;
+    ``kwargs``: its env kwargs, YAML)."""
     (run / "best").mkdir(parents=True) if best else run.mkdir(parents=True)
     for folder in (run, run / "best") if best else (run,):
         (folder / "model.zip").write_text(f"model in {folder.name}")
         (folder / "vecnormalize.pkl").write_text("statistics")
     (run / "config.yaml").write_text(
         "env: SRPB-Corridor-v0\nreward: srpb\nseed: 0\nhyperparams: {eval_episodes: 20}\n"
+        f"env_kwargs: {kwargs}\n"
     )
     machine = {"cpu_count": 2, "processor": "x", "system": "y", "torch_threads": 1}
     info = {"steps": 1000, "wall_time_s": 60.0, "machine": machine,
@@ -302,11 +304,16 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(ship, "evaluate", evaluate)
     monkeypatch.setattr(ship, "MODELS_DIR", tmp_path / "models")
     monkeypatch.setattr(ship, "stamp_observation", lambda *args: stamped.append(args))
-    _fake_run(tmp_path / "run", best=True, interrupted=True)
+    _fake_run(tmp_path / "run", best=True, interrupted=True,
+              kwargs="{observation: {lidar_encoding: log}}")  # fmt: skip
     card = ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, False, validate=50)
     shipped = tmp_path / "models" / "ppo-corridor-srpb"
-    # the packaged model is given the observation settings of the run's env kwargs
-    assert stamped == [(shipped / "model.zip", ObservationConfig())]
+    # the chosen model is given the observation settings of the run's env kwargs
+    assert stamped == [(tmp_path / "run" / "model.zip", ObservationConfig(lidar_encoding="log"))]
+    assert (
+        "| observation | `{lidar_encoding: log}`, the rest the defaults;"
+        in (shipped / "card.md").read_text()
+    )
     assert (shipped / "model.zip").read_text() == "model in run"  # the final model
     assert card["checkpoint"] == "final" and card["validation"]["chosen"] == "final"
     text = (shipped / "card.md").read_text()

@@ -289,12 +289,21 @@ def test_init_starts_from_a_trained_model(tmp_path):
     assert second.steps == 256 and lines[0].startswith("starting from")
     # every saved model says how it observed; a start that observed otherwise is refused
     assert getattr(PPO.load(path), OBSERVATION_RECORD) == dataclasses.asdict(ObservationConfig())
-    with pytest.raises(InputError, match=r"trained with observation=\{lidar_encoding: linear\}, "
-                       r"the environment has observation=\{lidar_encoding: log\}"):  # fmt: skip
+    with pytest.raises(
+        InputError,
+        match=r"trained with observation=\{lidar_encoding: linear\}, "
+        r"this run observes with observation=\{lidar_encoding: log\} \(start "
+        r"from it with --env-kwargs 'observation=\{lidar_encoding: linear\}'\)",
+    ):
         train("SRPB-Corridor-v0", config, out=str(tmp_path / "f"), progress=False,
               log=lambda line: None, init=first.out,
               env_kwargs={"observation": {"lidar_encoding": "log"}})  # fmt: skip
     assert not (tmp_path / "f").exists()
+    (tmp_path / "bad.zip").write_text("not a model")  # named, and no run folder left
+    with pytest.raises(InputError, match="not a stable-baselines3 model"):
+        train("SRPB-Corridor-v0", config, out=str(tmp_path / "g"), progress=False,
+              log=lambda line: None, init=str(tmp_path / "bad.zip"))  # fmt: skip
+    assert not (tmp_path / "g").exists()
 
     with pytest.raises(InputError, match="do not fit"):
         train("SRPB-Corridor-v0", resolve("SRPB-Corridor-v0", {**small, "net_arch": [8]}),

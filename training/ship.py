@@ -300,16 +300,16 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     work = run / "test"
     shutil.rmtree(work, ignore_errors=True)
     results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work, env_kwargs)
+    # a model trained before models carried their observation settings gets them here (a
+    # record that disagrees with the run's settings stops the packaging before it starts)
+    observation = ObservationConfig.from_spec((env_kwargs or {}).get("observation"))
+    stamp_observation(checkpoint / "model.zip", observation)
     target = MODELS_DIR / name
     shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
     target.mkdir(parents=True)
     for file in ("model.zip", "vecnormalize.pkl"):  # no statistics without normalize
         if (checkpoint / file).is_file():
             shutil.copyfile(checkpoint / file, target / file)
-    # a model trained before models carried their observation settings gets them here
-    stamp_observation(
-        target / "model.zip", ObservationConfig.from_spec((env_kwargs or {}).get("observation"))
-    )
     if (run / "evaluations.csv").is_file():
         shutil.copyfile(run / "evaluations.csv", target / "evaluations.csv")
     card = {

@@ -151,10 +151,12 @@ def _observes(policy: LearnedPolicy, probe: EvalConfig) -> str:
 
 
 def _check_spaces(policy: LearnedPolicy, probe: EvalConfig) -> None:
+    from srpb_gym.planners.learned import lidar_beams_of
+
     for env_id in probe.envs:
         env = probe.make_env(env_id, render=False)
         try:
-            policy.check_spaces(env.observation_space, env.action_space)
+            policy.check_spaces(env.observation_space, env.action_space, lidar_beams_of(env))
         except ValueError as exc:
             raise InputError(f"{exc} ({env_id})", key="--policy") from None
         finally:

@@ -1,9 +1,10 @@
 """One interface for everything that drives the robot.
 
-A planner sees what the robot knows, never the ground truth: the observation, and for
-classical planners a :class:`Knowledge` snapshot (static map, own state, goal, tracked
-people with covariances, lidar scan). It returns an action of the environment's action
-space (``Box(-1, 1)``; see :class:`srpb_gym.env.SRPBNavEnv`).
+A planner sees what the robot knows, never the ground truth: the observation and a
+:class:`Knowledge` snapshot (static map, own state, goal, tracked people with
+covariances, lidar scan), from which classical planners decide and learned policies that
+record their observation settings build their own observation. It returns an action of
+the environment's action space (``Box(-1, 1)``; see :class:`srpb_gym.env.SRPBNavEnv`).
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ class Knowledge:
     robot: RobotConfig
     control_dt: float
     t: float
-    range_min: float = 0.0
+    range_min: float = 0.05  # the default lidar's
 
 
 #: Assumed body radius of a tracked person [m], the default of the planners' settings.

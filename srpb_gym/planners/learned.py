@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.errors import InputError
 from srpb_gym.observation import ObservationBuilder, ObservationConfig
 from srpb_gym.observation import observation_space as observation_space_of
 from srpb_gym.planners.base import Knowledge, Planner
@@ -298,10 +299,12 @@ def recorded_observation(trained: Any) -> ObservationConfig:
         raise ValueError(f"its observation record is invalid ({exc})") from None
 
 
-def observation_mismatch(trained: Any, given: ObservationConfig) -> str | None:
+def observation_mismatch(trained: Any, given: ObservationConfig,
+                         other: str = "this run observes with") -> str | None:  # fmt: skip
     """``None`` when a model trained with the recorded settings ``trained`` (a mapping, or
     ``None``: no record) observes as ``given`` does; otherwise a sentence naming the
-    settings that differ (or what is wrong with the record)."""
+    settings that differ, ``other`` introducing ``given``'s (or what is wrong with the
+    record)."""
     if trained is None:
         return None
     try:
@@ -310,9 +313,8 @@ def observation_mismatch(trained: Any, given: ObservationConfig) -> str | None:
         return str(exc)
     if model_config == given:
         return None
-    return (f"it was trained with observation={settings_text(model_config, given)}, the "
-            f"environment has observation={settings_text(given, model_config)} (make it "
-            f"with observation={settings_text(model_config, given)})")  # fmt: skip
+    return (f"it was trained with observation={settings_text(model_config, given)}, "
+            f"{other} observation={settings_text(given, model_config)}")  # fmt: skip
 
 
 def settings_text(config: ObservationConfig, other: ObservationConfig) -> str:
@@ -320,6 +322,14 @@ def settings_text(config: ObservationConfig, other: ObservationConfig) -> str:
     names = [f.name for f in dataclasses.fields(ObservationConfig)
              if getattr(config, f.name) != getattr(other, f.name)]  # fmt: skip
     return "{" + ", ".join(f"{n}: {getattr(config, n)}" for n in names) + "}"
+
+
+def lidar_beams_of(env: Any) -> int | None:
+    """The number of lidar beams of an srpb-gym environment's robots; ``None`` for another
+    environment."""
+    sim = getattr(getattr(env, "unwrapped", env), "sim", None)
+    lidar = getattr(sim, "lidar_config", None)
+    return None if lidar is None else int(lidar.n_beams)
 
 
 def observation_config_of(env: Any) -> ObservationConfig | None:
@@ -371,8 +381,9 @@ class LearnedPolicy(Planner):
 
     A model that records its observation settings (``observation_config``) observes with
     them: each step it builds its observation from the :class:`Knowledge` snapshot, exactly
-    as an environment with those settings would, and ignores the environment's. A model
-    without the record acts on the environment's observation.
+    as an environment with those settings would, and ignores the environment's (``act``
+    then needs the snapshot). A model without the record acts on the environment's
+    observation and may be given ``None``.
     """
 
     name = "learned"
@@ -415,15 +426,23 @@ class LearnedPolicy(Planner):
         ``None`` for a model saved without them."""
         return getattr(self.model, OBSERVATION_RECORD, None)
 
-    def check_spaces(self, observation_space: Any, action_space: Any) -> None:
+    def check_spaces(self, observation_space: Any, action_space: Any,
+                     lidar_beams: int | None = None) -> None:  # fmt: skip
         """Raise ``ValueError`` (one line naming both spaces) unless the model acts in
         ``action_space`` and takes the observations it will get: those of
         ``observation_space`` or, for a model that observes with its recorded settings,
-        those of its settings (the same kind, shape and bounds)."""
+        those of its settings (the same kind, shape and bounds); such a model also needs
+        at least as many ``lidar_beams`` (the environment's, when given) as its settings
+        have lidar sectors."""
         where = "the environment has"
-        if self.observation_config is not None:
-            observation_space = observation_space_of(self.observation_config)
-            where = "its recorded observation settings give"
+        own = self.observation_config
+        if own is not None:
+            observation_space = observation_space_of(own)
+            where = "its observation record does not match it:"
+            if lidar_beams is not None and own.lidar_bins > lidar_beams:
+                raise ValueError(f"{self.path}: it observes {own.lidar_bins} lidar sectors "
+                                 f"(its recorded observation settings), the environment's "
+                                 f"lidar has {lidar_beams} beams")  # fmt: skip
         pairs = (("observation", self.model.observation_space, observation_space),
                  ("action", self.model.action_space, action_space))  # fmt: skip
         for what, trained, given in pairs:
@@ -439,22 +458,30 @@ class LearnedPolicy(Planner):
         if self.observation_config is not None:
             self._observer(knowledge)
 
-    def _observer(self, knowledge: Knowledge) -> ObservationBuilder:
+    def _observer(self, knowledge: Knowledge | None) -> ObservationBuilder:
         """The builder of the model's own observation, for the robot and lidar of
         ``knowledge`` (made again when they change)."""
+        if knowledge is None:
+            raise TypeError(f"{self.path} observes with its recorded observation settings "
+                            "and needs the Knowledge snapshot: act(observation, "
+                            "env.unwrapped.knowledge())")  # fmt: skip
         robot = knowledge.robot
         sensors = (knowledge.scan.shape[0], knowledge.range_max, max(robot.v_max, -robot.v_min),
                    robot.vy_max, robot.w_max, knowledge.range_min)  # fmt: skip
         if self._builder is None or sensors != self._sensors:
             assert self.observation_config is not None
-            self._builder = ObservationBuilder(self.observation_config, *sensors)
+            try:
+                self._builder = ObservationBuilder(self.observation_config, *sensors)
+            except InputError as exc:
+                raise ValueError(f"{self.path}: {exc.message} (its recorded observation "
+                                 "settings)") from None  # fmt: skip
             self._sensors = sensors
         return self._builder
 
-    def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
+    def act(self, observation: Any, knowledge: Knowledge | None) -> NDArray[np.float32]:
         if self.observation_config is not None:
-            k = knowledge
-            observation = self._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
+            builder, k = self._observer(knowledge), knowledge
+            observation = builder.build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
         if self._normalizer is not None:
             observation = self._normalizer.normalize_obs(observation)
         action, _ = self.model.predict(observation, deterministic=self.deterministic)

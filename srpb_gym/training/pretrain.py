@@ -97,12 +97,13 @@ def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> P
         return make_planner(teacher)
     from srpb_gym.evaluation.policies import load_policy
     from srpb_gym.evaluation.spec import PlannerSpec
+    from srpb_gym.planners.learned import lidar_beams_of
     from srpb_gym.training.run import resolve_init
 
     try:
         path, vecnormalize = resolve_init(teacher)
         policy = load_policy(PlannerSpec(name=teacher, policy=path, vecnormalize=vecnormalize))
-        policy.check_spaces(env.observation_space, env.action_space)
+        policy.check_spaces(env.observation_space, env.action_space, lidar_beams_of(env))
     except InputError as exc:
         raise InputError(exc.message, exc.path, key=key) from None
     except ValueError as exc:  # the spaces check; its message names the model file

@@ -42,7 +42,12 @@ from srpb_gym.errors import InputError, env_kwargs_error
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.observation import ObservationConfig
-from srpb_gym.planners.learned import observation_mismatch, record_observation
+from srpb_gym.planners.learned import (
+    observation_mismatch,
+    record_observation,
+    recorded_observation,
+    settings_text,
+)
 from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 from srpb_gym.reward import PRESET_GAMMA, TERMS, preset_names, shaping_bound
 from srpb_gym.training.callbacks import (
@@ -370,14 +375,26 @@ def model_steps(path: str) -> int:
 
 def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
                observation: ObservationConfig) -> None:  # fmt: skip
-    from stable_baselines3.common.save_util import load_from_zip_file
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from srpb_gym.planners.learned import OBSERVATION_RECORD, load_vecnormalize
+    from srpb_gym.planners.learned import (
+        OBSERVATION_RECORD,
+        PolicyFileError,
+        load_vecnormalize,
+        model_data,
+    )
 
-    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
-    why = observation_mismatch(data.get(OBSERVATION_RECORD), observation)
+    try:
+        record = model_data(path).get(OBSERVATION_RECORD)
+    except PolicyFileError as exc:
+        raise InputError(exc.reason, exc.path, key="--init") from None
+    why = observation_mismatch(record, observation)
     if why is not None:
+        try:
+            hint = settings_text(recorded_observation(record), observation)
+            why += f" (start from it with --env-kwargs 'observation={hint}')"
+        except ValueError:  # an invalid record: the reason says why
+            pass
         raise InputError(f"{path}: {why}", key="--init")
 
     try:

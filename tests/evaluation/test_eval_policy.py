@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from srpb_gym.cli import main
@@ -263,9 +264,8 @@ def test_observation_records_are_compared_setting_by_setting():
     assert observation_mismatch(None, default) is None
     assert observation_mismatch({"type": "flat"}, default) is None  # missing: the defaults
     two = observation_mismatch({"people": 4, "goal_scale": 2.0}, default)
-    assert two == ("it was trained with observation={people: 4, goal_scale: 2.0}, the "
-                   "environment has observation={people: 6, goal_scale: 20.0} (make it with "
-                   "observation={people: 4, goal_scale: 2.0})")  # fmt: skip
+    assert two == ("it was trained with observation={people: 4, goal_scale: 2.0}, this run "
+                   "observes with observation={people: 6, goal_scale: 20.0}")  # fmt: skip
     assert observation_mismatch({"history": 4}, default) == (
         "it was trained with observation settings this version does not know: history"
     )
@@ -287,3 +287,81 @@ def test_a_model_without_a_record_is_stamped_once(models, tmp_path):
     assert stamp_observation(path, log) is False  # already says so: left as it is
     with pytest.raises(PolicyFileError, match=r"trained with observation=\{lidar_encoding: log\}"):
         stamp_observation(path, ObservationConfig())
+
+
+def test_a_recorded_model_needs_as_many_lidar_beams_as_its_sectors(models, tmp_path, capsys):
+    """Refused before the first episode, naming the model and its recorded settings."""
+    from stable_baselines3 import PPO
+
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import LearnedPolicy, record_observation
+
+    model = PPO.load(models / "ppo.zip", device="cpu")
+    record_observation(model, ObservationConfig())  # 30 sectors
+    model.save(tmp_path / "rec.zip")
+    out = tmp_path / "e"
+    args = ["eval", "--env", ENV, "--policy", str(tmp_path / "rec.zip"), "--vecnormalize",
+            "none", "--env-kwargs", "sensors={lidar: {n_beams: 20}}",
+            "observation={lidar_bins: 10}", "--out", str(out)]  # fmt: skip
+    assert main(args) == 2
+    assert _error(capsys) == (f"--policy: {tmp_path}/rec.zip: it observes 30 lidar sectors (its "
+                              "recorded observation settings), the environment's lidar has 20 "
+                              f"beams ({ENV})")  # fmt: skip
+    assert not out.exists()
+    policy = LearnedPolicy(tmp_path / "rec.zip", vecnormalize=None)
+    with pytest.raises(TypeError, match="needs the Knowledge snapshot"):
+        policy.act(np.zeros(80, np.float32), None)  # type: ignore[arg-type]
+
+
+LIDAR = {"sensors": {"lidar": {"range_min": 0.3, "n_beams": 90}}}  # not the defaults
+
+
+@pytest.mark.parametrize(
+    ("make", "observation", "kwargs"),
+    [
+        ("SRPB-Corridor-v0", {}, {}),
+        ("SRPB-Crowd-v0", {"lidar_encoding": "log"}, LIDAR),
+        ("SRPB-Crowd-v0", {"type": "dict", "people": 3, "lidar_encoding": "log"}, {}),
+        ("SRPB-Crowd-v0", {"lidar_encoding": "log"}, {"robot": {"v_max": 0.8, "w_max": 2.0}}),
+        ("SRPB-Mix-v0", {"lidar_encoding": "log", "lidar_bins": 12}, {}),
+        ("parallel", {"lidar_encoding": "log"}, LIDAR),
+    ],
+)
+def test_the_own_observation_equals_the_environments(models, make, observation, kwargs):
+    """Built from the Knowledge snapshot, a recorded model's observation is the one an
+    environment with its settings gives, value for value, robot by robot."""
+    import gymnasium as gym
+
+    import srpb_gym
+    from srpb_gym.observation import ObservationConfig
+    from srpb_gym.planners.learned import LearnedPolicy
+
+    policy = LearnedPolicy(models / "ppo.zip", vecnormalize=None)
+    policy.observation_config = ObservationConfig.from_spec(observation)
+    rng = np.random.default_rng(0)
+    if make == "parallel":
+        env = srpb_gym.parallel_env(scenario="crowd", n_robots=3, observation=observation,
+                                    **kwargs)  # fmt: skip
+        obs, _ = env.reset(seed=3)
+        for _ in range(40):
+            for agent in env.agents:
+                k = env.knowledge(agent)
+                own = policy._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
+                np.testing.assert_array_equal(own, obs[agent])
+            obs, *_ = env.step({a: rng.uniform(-1, 1, 2) for a in env.agents})
+        return
+    env = gym.make(make, observation=observation, **kwargs)
+    for seed in (0, 1):
+        obs, _ = env.reset(seed=seed)
+        for _ in range(60):
+            k = env.unwrapped.knowledge()
+            own = policy._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
+            if isinstance(obs, dict):
+                assert own.keys() == obs.keys()
+                for key in obs:
+                    np.testing.assert_array_equal(own[key], obs[key], err_msg=key)
+            else:
+                np.testing.assert_array_equal(own, obs)
+            obs, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 2))
+            if terminated or truncated:
+                break
