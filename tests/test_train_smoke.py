@@ -128,6 +128,34 @@ def test_sigterm_saves_like_ctrl_c(tmp_path, monkeypatch):
     assert signal.getsignal(signal.SIGTERM) is before  # the process's own handler is back
 
 
+def test_sigterm_during_a_periodic_evaluation_stops_the_run(tmp_path, monkeypatch):
+    """The evaluation harness ends its run at the signal; training stops then too, saving
+    the model, and the cut-short evaluation is neither recorded nor kept."""
+    import os
+    import signal
+
+    from srpb_gym.evaluation import runner
+
+    episode = runner.run_episode
+
+    def terminated(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        return episode(*args, **kwargs)
+
+    monkeypatch.setattr(runner, "run_episode", terminated)
+    config = resolve("SRPB-Corridor-v0", {"n_steps": 128, "batch_size": 64, "n_epochs": 1,
+                                          "net_arch": [16], "eval_freq": 256,
+                                          "eval_episodes": 1, "n_timesteps": 2048})  # fmt: skip
+    lines: list[str] = []
+    result = train("SRPB-Corridor-v0", config, out=str(tmp_path / "run"), progress=False,
+                   log=lines.append)  # fmt: skip
+    assert result.interrupted and 256 <= result.steps < 512, (result.steps, lines)
+    assert (tmp_path / "run" / "model.zip").is_file()
+    assert not (tmp_path / "run" / "evaluations.csv").exists()
+    assert not (tmp_path / "run" / "best").exists()
+    assert not list((tmp_path / "run" / "eval").glob("step_*"))
+
+
 def test_wall_clock_limit_stops_as_finished(tmp_path):
     small = {"n_steps": 64, "batch_size": 64, "n_envs": 1, "n_epochs": 1, "net_arch": [8],
              "eval_freq": 0}  # fmt: skip
@@ -424,7 +452,7 @@ def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monk
 
     def run(config, log=None, progress=True):
         os.makedirs(config.out)
-        return SimpleNamespace(results=None)
+        return SimpleNamespace(results=None, interrupted=False)
 
     successes = iter([0.5, 0.9, 0.7, 0.6, 1.0, 0.8])
 

@@ -204,6 +204,9 @@ class PeriodicEvalCallback(BaseCallback):
             warmup=0, log=None, env_kwargs=self.env_kwargs,
         )  # fmt: skip
         outcome = run_evaluation(config, log=self.log, progress=self.progress)
+        if outcome.interrupted:  # Ctrl-C or SIGTERM during it: stop training, as it would
+            shutil.rmtree(folder, ignore_errors=True)  # a cut-short evaluation scores nothing
+            raise KeyboardInterrupt("during a periodic evaluation")
         figures = summarize_results(outcome.results)
         rows = []
         for env_id, fig in figures.items():
