@@ -41,6 +41,7 @@ from numpy.typing import NDArray
 
 from srpb_gym.config import from_spec
 from srpb_gym.errors import InputError
+from srpb_gym.sim.robot import RobotConfig
 
 OBSERVATION_TYPES = ("flat", "dict")
 LIDAR_ENCODINGS = ("linear", "log")
@@ -171,6 +172,14 @@ class ObservationBuilder:
         self.bins = bins
         self._order = np.zeros(64, dtype=np.int64)
         self.space = observation_space(config)
+
+    @classmethod
+    def for_robot(cls, config: ObservationConfig, robot: RobotConfig, n_beams: int,
+                  range_min: float, range_max: float) -> ObservationBuilder:  # fmt: skip
+        """The builder of ``config`` for a robot with these limits and lidar: the speed
+        scales are the largest linear speed either way, the lateral and the angular one."""
+        return cls(config, n_beams, range_max, max(robot.v_max, -robot.v_min), robot.vy_max,
+                   robot.w_max, range_min)  # fmt: skip
 
     def build(self, pose, goal, velocity, scan, tracks) -> NDArray[np.float32] | dict:
         """A fresh observation from the robot's pose, goal, measured velocity, lidar scan

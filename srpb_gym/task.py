@@ -130,10 +130,10 @@ class RobotTask:
         self.params = metrics.params
         self.record_dir = _checked_record_dir(record_dir)
         cfg = sim.robot_config
-        self.obs_builder = ObservationBuilder(
-            observation, sim.lidar_config.n_beams, sim.lidar_config.range_max,
-            max(cfg.v_max, -cfg.v_min), cfg.vy_max, cfg.w_max, sim.lidar_config.range_min,
-        )  # fmt: skip
+        lidar = sim.lidar_config
+        self.obs_builder = ObservationBuilder.for_robot(
+            observation, cfg, lidar.n_beams, lidar.range_min, lidar.range_max
+        )
         self.observation_space = self.obs_builder.space
         self.action_space = gym.spaces.Box(-1.0, 1.0, (cfg.action_dims,), np.float32)
         self.reward_fn = RewardFunction(weights, self.params, metrics.semantics)

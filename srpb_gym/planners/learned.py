@@ -404,7 +404,7 @@ class LearnedPolicy(Planner):
         except ValueError as exc:
             raise PolicyFileError(self.path, str(exc)) from None
         self._builder: ObservationBuilder | None = None
-        self._sensors: tuple[float, ...] = ()
+        self._sensors: tuple[Any, ...] = ()
         if vecnormalize == "auto":
             vecnormalize = find_vecnormalize(self.path)
         self.vecnormalize = None if vecnormalize is None else os.fspath(vecnormalize)
@@ -465,13 +465,12 @@ class LearnedPolicy(Planner):
             raise TypeError(f"{self.path} observes with its recorded observation settings "
                             "and needs the Knowledge snapshot: act(observation, "
                             "env.unwrapped.knowledge())")  # fmt: skip
-        robot = knowledge.robot
-        sensors = (knowledge.scan.shape[0], knowledge.range_max, max(robot.v_max, -robot.v_min),
-                   robot.vy_max, robot.w_max, knowledge.range_min)  # fmt: skip
+        sensors = (knowledge.robot, knowledge.scan.shape[0], knowledge.range_min,
+                   knowledge.range_max)  # fmt: skip
         if self._builder is None or sensors != self._sensors:
             assert self.observation_config is not None
             try:
-                self._builder = ObservationBuilder(self.observation_config, *sensors)
+                self._builder = ObservationBuilder.for_robot(self.observation_config, *sensors)
             except InputError as exc:
                 raise ValueError(f"{self.path}: {exc.message} (its recorded observation "
                                  "settings)") from None  # fmt: skip
