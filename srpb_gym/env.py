@@ -85,9 +85,13 @@ class SRPBNavEnv(gym.Env):
     ``lidar_encoding="log"`` encodes the lidar as log(r / 0.05 m) / log(25 m / 0.05 m)
     (the lidar's range_min and range_max) instead of r / 25 m: 2.5 cm at 0.3 m move it by
     0.013 instead of 0.001, so that a policy can tell the clearance of a door (a range_min
-    below range_max / 1000 is taken as range_max / 1000). Models trained by
-    ``srpb-gym train`` record these settings and observe with them in any environment
-    (:mod:`srpb_gym.planners.learned`).
+    below range_max / 1000 is taken as range_max / 1000). ``lidar_groups=0.01`` draws the
+    O-spaces of the groups standing among the tracks into the lidar sectors, out to where
+    their ``fsi`` value falls to 0.01 (groups: tracks slower than 0.3 m/s within
+    ``group_distance``, 3 m, of another), so that the robot sees an F-formation as an
+    obstacle; the physical lidar and the reward are unchanged (0: none, the default; see
+    :mod:`srpb_gym.observation`). Models trained by ``srpb-gym train`` record these
+    settings and observe with them in any environment (:mod:`srpb_gym.planners.learned`).
 
     ## Rewards
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,
@@ -166,6 +170,8 @@ class SRPBNavEnv(gym.Env):
       earlier v0 builds are not comparable with these. The ``approach`` term was added
       with weight 0 in both presets (their rewards unchanged). The observation setting
       ``lidar_encoding`` was added; its default ``"linear"`` is the observation as before.
+      So were ``lidar_groups`` and ``group_distance``; by default (0) no O-space is drawn,
+      the observation as before.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

@@ -24,6 +24,20 @@ range_max / 1000). The linear encoding of a 25 m lidar moves by 0.001 per 2.5 cm
 the same relative change at every range (0.013 per 2.5 cm at 0.3 m, 0.0016 per 1 %) and
 keeps the far readings.
 
+``lidar_groups``: a level in (0, 1) draws the O-spaces of the standing groups into the
+lidar sectors as obstacles, out to where their ``fsi`` value falls to that level: a beam
+reads the shorter of its range and its distance to such a contour. 0 (default) draws
+none. The groups are found among the tracks, as a planner must find them
+(:func:`srpb_gym.perception.groups.detect_groups`: at least two tracks standing, slower
+than 0.3 m/s and tracked for 1 s or more, each within ``group_distance`` of another); the
+O-space is the ``fsi`` metric's Gaussian of the metric's small-group ellipse (centre the
+members' mean, semi-axes half the longest distance between two members and the members'
+spread across it, standard deviations half those) plus the members' largest tracking
+covariance (the metric fits an ellipse to groups of five or more instead). At 0.01 a
+standing pair 2.5 m apart, tracked to 0.003 m^2, is drawn as an ellipse 3.8 m long and
+0.9 m across: the robot sees an obstacle between and around the two. The physical lidar,
+the people slots and the reward are unchanged; a contour the robot is inside is not drawn.
+
 The ``dict`` type has the keys ``goal`` (5,), ``velocity`` (3,), ``lidar`` (L,),
 ``people`` (K, 6) and ``people_mask`` (K,), with the same values.
 """
@@ -41,11 +55,16 @@ from numpy.typing import NDArray
 
 from srpb_gym.config import from_spec
 from srpb_gym.errors import InputError
+from srpb_gym.metrics.kernels import fallback_ellipses, group_covariances
+from srpb_gym.metrics.params import MetricParams
+from srpb_gym.perception.groups import standing_groups
 from srpb_gym.sim.robot import RobotConfig
 
 OBSERVATION_TYPES = ("flat", "dict")
 LIDAR_ENCODINGS = ("linear", "log")
 GOAL, VELOCITY, PERSON = 5, 3, 7
+#: a track slower than this [m/s], tracked this long [s] at least, stands (``lidar_groups``)
+STANDING_SPEED, MIN_TRACK_AGE = 0.3, 1.0
 
 
 @dataclass(frozen=True)
@@ -60,6 +79,8 @@ class ObservationConfig:
     speed_scale: float = 2.0  # m/s, people's relative velocities
     uncertainty_scale: float = 1.0  # m, position standard deviations
     lidar_encoding: str = "linear"  # "linear" (r / range_max) or "log" (see the module doc)
+    lidar_groups: float = 0.0  # fsi level of the O-space contours drawn into the lidar (0: none)
+    group_distance: float = 3.0  # m, standing tracks this close to another form a group
 
     def __post_init__(self) -> None:
         if self.type not in OBSERVATION_TYPES:
@@ -72,7 +93,11 @@ class ObservationConfig:
             )
         if self.lidar_bins < 1 or self.people < 0:
             raise ValueError("lidar_bins must be >= 1 and people >= 0")
-        for name in ("goal_scale", "people_range", "speed_scale", "uncertainty_scale"):
+        if not 0.0 <= self.lidar_groups < 1.0:
+            raise ValueError(f"lidar_groups must be in [0, 1) (0: no O-spaces in the lidar), "
+                             f"got {self.lidar_groups!r}")  # fmt: skip
+        for name in ("goal_scale", "people_range", "speed_scale", "uncertainty_scale",
+                     "group_distance"):  # fmt: skip
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be > 0")
 
@@ -136,6 +161,62 @@ def fill_observation(pose, goal, velocity, vel_scale, scan, edges, range_min, ra
         out[o + 6] = 1.0
 
 
+@njit(cache=True, error_model="numpy")
+def draw_contours(x, y, yaw, angles, scan, rows, radius2, out):
+    """``out`` (n_beams,): each beam's range in ``scan``, or its distance from the robot at
+    (x, y, yaw) to the nearest contour d^T S^-1 d = ``radius2`` of the O-space Gaussians
+    ``rows`` (G, 8: centre x, y, semi-axes a, b, orientation, covariance sxx, sxy, syy;
+    S = R diag((a/2)^2, (b/2)^2) R^T + cov, as the ``fsi`` metric) where shorter. A contour
+    around the robot is not drawn."""
+    out[:] = scan
+    for g in range(rows.shape[0]):
+        va, vb = (0.5 * rows[g, 2]) ** 2, (0.5 * rows[g, 3]) ** 2
+        c, s = math.cos(rows[g, 4]), math.sin(rows[g, 4])
+        sxx = c * c * va + s * s * vb + rows[g, 5]
+        sxy = c * s * (va - vb) + rows[g, 6]
+        syy = s * s * va + c * c * vb + rows[g, 7]
+        det = sxx * syy - sxy * sxy
+        if not det > 0.0:
+            continue
+        ixx, ixy, iyy = syy / det, -sxy / det, sxx / det
+        ox, oy = x - rows[g, 0], y - rows[g, 1]
+        q0 = ixx * ox * ox + 2.0 * ixy * ox * oy + iyy * oy * oy - radius2
+        if q0 <= 0.0:
+            continue
+        for j in range(angles.shape[0]):
+            ux, uy = math.cos(yaw + angles[j]), math.sin(yaw + angles[j])
+            qa = ixx * ux * ux + 2.0 * ixy * ux * uy + iyy * uy * uy
+            qb = 2.0 * (ixx * ox * ux + ixy * (ox * uy + oy * ux) + iyy * oy * uy)
+            disc = qb * qb - 4.0 * qa * q0
+            if disc < 0.0 or qb >= 0.0:  # no crossing, or the contour is behind the beam
+                continue
+            t = (-qb - math.sqrt(disc)) / (2.0 * qa)
+            if t < out[j]:
+                out[j] = t
+
+
+@njit(cache=True, error_model="numpy")
+def draw_groups(x, y, yaw, angles, scan, xy, velocity, age, cov, distance, occupancy_radius,
+                radius2, parent, members, start, size, skip, rows, out):  # fmt: skip
+    """``out``: ``scan`` with the O-space contours of the groups standing among the tracks
+    (:func:`srpb_gym.perception.groups.standing_groups`; each group's fallback ellipse of
+    the ``fsi`` metric and its members' largest covariance, :func:`draw_contours`) drawn
+    in. ``parent``, ``members`` (K,), ``start``, ``size``, ``skip`` (K // 2,) and ``rows``
+    (K // 2, 8) are scratch."""
+    g, _ = standing_groups(xy, velocity, age, STANDING_SPEED, distance, MIN_TRACK_AGE,
+                           parent, members, start, size)  # fmt: skip
+    if g == 0:
+        out[:] = scan
+        return
+    st, sz, r = start[:g], size[:g], rows[:g]
+    skip[:g] = False
+    fallback_ellipses(xy[:, 0], xy[:, 1], members, st, sz, occupancy_radius, False,
+                      skip[:g], r[:, 0], r[:, 1], r[:, 2], r[:, 3], r[:, 4])  # fmt: skip
+    group_covariances(cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 0], cov[:, 1, 1], members, st, sz,
+                      False, r[:, 5], r[:, 6], r[:, 7])  # fmt: skip
+    draw_contours(x, y, yaw, angles, scan, r, radius2, out)
+
+
 def observation_space(config: ObservationConfig) -> gym.Space:
     """The Gymnasium space of the observations that ``config`` describes."""
     box = lambda *shape: gym.spaces.Box(-1.0, 1.0, shape, np.float32)  # noqa: E731
@@ -154,7 +235,8 @@ class ObservationBuilder:
 
     def __init__(self, config: ObservationConfig, n_beams: int, range_max: float,
                  v_scale: float, vy_scale: float, w_max: float,
-                 range_min: float = 0.05) -> None:  # fmt: skip
+                 range_min: float = 0.05, angles: NDArray[np.float64] | None = None,
+                 ) -> None:  # fmt: skip
         self.config = config
         if config.lidar_bins > n_beams:
             raise InputError(f"{config.lidar_bins} lidar sectors need at least as many beams; "
@@ -172,19 +254,46 @@ class ObservationBuilder:
         self.bins = bins
         self._order = np.zeros(64, dtype=np.int64)
         self.space = observation_space(config)
+        self._groups = config.lidar_groups > 0.0
+        if self._groups:
+            if angles is None or np.shape(angles) != (n_beams,):
+                raise ValueError("lidar_groups needs the lidar's beam angles (n_beams,)")
+            self._angles = np.ascontiguousarray(angles, dtype=np.float64)
+            self._scan = np.empty(n_beams)
+            self._radius2 = -2.0 * math.log(config.lidar_groups)
+            self._occupancy = MetricParams().person_occupancy_radius
+            self._scratch(16)
+
+    def _scratch(self, k: int) -> None:
+        """Scratch arrays of the group kernel for ``k`` tracks."""
+        self._parent, self._members = np.empty(k, np.int64), np.empty(k, np.int64)
+        self._start, self._size = np.empty(k // 2, np.int64), np.empty(k // 2, np.int64)
+        self._skip, self._rows = np.empty(k // 2, np.bool_), np.empty((k // 2, 8))
 
     @classmethod
     def for_robot(cls, config: ObservationConfig, robot: RobotConfig, n_beams: int,
-                  range_min: float, range_max: float) -> ObservationBuilder:  # fmt: skip
-        """The builder of ``config`` for a robot with these limits and lidar: the speed
-        scales are the largest linear speed either way, the lateral and the angular one."""
+                  range_min: float, range_max: float,
+                  angles: NDArray[np.float64] | None = None) -> ObservationBuilder:  # fmt: skip
+        """The builder of ``config`` for a robot with these limits and lidar (``angles``:
+        its beam angles, needed to draw O-spaces): the speed scales are the largest linear
+        speed either way, the lateral and the angular one."""
         return cls(config, n_beams, range_max, max(robot.v_max, -robot.v_min), robot.vy_max,
-                   robot.w_max, range_min)  # fmt: skip
+                   robot.w_max, range_min, angles)  # fmt: skip
 
     def build(self, pose, goal, velocity, scan, tracks) -> NDArray[np.float32] | dict:
         """A fresh observation from the robot's pose, goal, measured velocity, lidar scan
         and its tracker's tracks."""
         out = np.empty(self.size, dtype=np.float32)
+        if self._groups:
+            k = tracks.xy.shape[0]
+            if k > self._parent.shape[0]:
+                self._scratch(2 * k)
+            draw_groups(pose[0], pose[1], pose[2], self._angles, scan, tracks.xy,
+                        tracks.velocity, tracks.age, tracks.covariance,
+                        self.config.group_distance, self._occupancy, self._radius2,
+                        self._parent, self._members, self._start, self._size, self._skip,
+                        self._rows, self._scan)  # fmt: skip
+            scan = self._scan
         if tracks.xy.shape[0] > self._order.shape[0]:
             self._order = np.zeros(2 * tracks.xy.shape[0], dtype=np.int64)
         fill_observation(pose, goal, velocity, self.vel_scale, scan, self.edges,

@@ -37,6 +37,7 @@ from srpb_gym.metrics.episode import at_goal
 from srpb_gym.metrics.params import MetricParams, check_semantics
 from srpb_gym.metrics.record import EpisodeRecord
 from srpb_gym.observation import ObservationBuilder, ObservationConfig
+from srpb_gym.perception.lidar import beam_angles
 from srpb_gym.planners.base import Knowledge
 from srpb_gym.reward import SRPB_TERMS, TERMS, RewardFunction, resolve_weights
 from srpb_gym.sim.robot import RobotConfig
@@ -131,9 +132,9 @@ class RobotTask:
         self.record_dir = _checked_record_dir(record_dir)
         cfg = sim.robot_config
         lidar = sim.lidar_config
-        self.obs_builder = ObservationBuilder.for_robot(
-            observation, cfg, lidar.n_beams, lidar.range_min, lidar.range_max
-        )
+        self.obs_builder = ObservationBuilder.for_robot(observation, cfg, lidar.n_beams,
+                                                        lidar.range_min, lidar.range_max,
+                                                        beam_angles(lidar))  # fmt: skip
         self.observation_space = self.obs_builder.space
         self.action_space = gym.spaces.Box(-1.0, 1.0, (cfg.action_dims,), np.float32)
         self.reward_fn = RewardFunction(weights, self.params, metrics.semantics)

@@ -319,6 +319,86 @@ def test_log_lidar_encoding_by_hand():
         ObservationConfig(lidar_encoding="sqrt")
 
 
+def pair_tracks(centre=(5.0, 0.0), half=1.25, axis=math.pi / 2, speed=0.0, age=2.0,
+                var=0.01) -> Tracks:  # fmt: skip
+    """Two tracks ``2 half`` m apart along ``axis`` around ``centre``, standing (or walking
+    at ``speed`` along the axis), tracked for ``age`` s, covariance ``var`` I."""
+    d = half * np.array([math.cos(axis), math.sin(axis)])
+    xy = np.array([np.add(centre, -d), np.add(centre, d)])
+    vel = np.tile(speed * d / half, (2, 1))
+    return Tracks(np.arange(2), xy, vel, np.zeros(2), np.tile(var * np.eye(2), (2, 1, 1)),
+                  np.full(2, age), np.zeros(2), np.ones(2, bool), np.arange(2))  # fmt: skip
+
+
+def groups_builder(level=0.01, n_beams=9, fov=math.pi / 2, **kwargs) -> ObservationBuilder:
+    """A builder whose lidar sectors are single beams, ``fov`` wide, 20 m."""
+    cfg = ObservationConfig(lidar_bins=n_beams, people=0, lidar_groups=level, **kwargs)
+    angles = np.linspace(-fov / 2, fov / 2, n_beams)
+    return ObservationBuilder(cfg, n_beams, 20.0, 0.5, 0.0, 1.0, angles=angles)
+
+
+def test_o_space_contour_in_the_lidar_by_hand():
+    """A standing pair 2.5 m apart across the robot's way, 5 m ahead: the beam straight
+    ahead reads the distance to the contour where the pair's O-space Gaussian (the fsi
+    metric's: semi-axes a = 1.25 m along the pair, b = d_ocp = 0.28 m across it, standard
+    deviations a/2 and b/2, plus the members' covariance) falls to the level."""
+    builder, level = groups_builder(), 0.01
+    pose, goal, vel = np.array([0.0, 0.0, 0.0]), np.array([10.0, 0.0, 0.0]), np.zeros(3)
+    scan = np.full(9, 20.0)
+    obs = builder.build(pose, goal, vel, scan, pair_tracks())
+    radius = math.sqrt(-2.0 * math.log(level))
+    ahead = 5.0 - radius * math.sqrt(0.14**2 + 0.01)  # across the pair: b/2 and 0.01 m^2
+    assert obs[8 + 4] == pytest.approx(ahead / 20.0, abs=1e-6)
+    # the next beam to the left (11.25 degrees): solve for the contour by bisection
+    theta, var_x, var_y = math.pi / 16, 0.14**2 + 0.01, 0.625**2 + 0.01
+    q = lambda t: ((t * math.cos(theta) - 5.0) ** 2 / var_x  # noqa: E731
+                   + (t * math.sin(theta)) ** 2 / var_y - radius**2)  # fmt: skip
+    lo, hi = 0.0, 5.0 / math.cos(theta)  # outside at 0, inside at the centre's abscissa
+    for _ in range(60):
+        lo, hi = (lo, 0.5 * (lo + hi)) if q(0.5 * (lo + hi)) < 0 else (0.5 * (lo + hi), hi)
+    assert obs[8 + 5] == pytest.approx(lo / 20.0, abs=1e-6)
+    assert obs[8] == obs[8 + 8] == 1.0  # the beams at +-45 degrees pass the contour
+    # a nearer wall stays; the physical scan is not changed
+    scan[4] = 2.0
+    assert builder.build(pose, goal, vel, scan, pair_tracks())[8 + 4] == pytest.approx(0.1)
+    assert scan[4] == 2.0 and scan[0] == 20.0
+    # no contour: level 0, walking or newly tracked members, members farther apart than
+    # group_distance, or the robot inside the contour
+    plain = ObservationBuilder(ObservationConfig(lidar_bins=9, people=0), 9, 20.0, 0.5, 0.0,
+                               1.0)  # fmt: skip
+    free = plain.build(pose, goal, vel, np.full(9, 20.0), pair_tracks())
+    assert (free[8:] == 1.0).all()
+    for tracks, b in ((pair_tracks(speed=0.5), builder), (pair_tracks(age=0.5), builder),
+                      (pair_tracks(), groups_builder(group_distance=2.0)),
+                      (pair_tracks(centre=(0.1, 0.0)), builder)):  # fmt: skip
+        assert np.array_equal(b.build(pose, goal, vel, np.full(9, 20.0), tracks), free)
+
+
+def test_o_space_contour_is_invariant_to_the_frame():
+    """Moving and turning the robot, the pair and the goal together changes nothing."""
+    builder = groups_builder(n_beams=31, fov=math.pi)
+    pose, goal, scan = np.array([0.0, 0.0, 0.2]), np.array([10.0, 0.0, 0.0]), np.full(31, 20.0)
+    base = builder.build(pose, goal, np.zeros(3), scan, pair_tracks(axis=1.3))
+    assert (base[8:] < 1.0).sum() >= 3  # the contour is in view
+    shift, turn = np.array([3.0, -7.0]), 2.1
+    c, s = math.cos(turn), math.sin(turn)
+    rot = lambda p: np.array([c * p[0] - s * p[1], s * p[0] + c * p[1]]) + shift  # noqa: E731
+    moved = builder.build(np.array([*rot(pose[:2]), pose[2] + turn]),
+                          np.array([*rot(goal[:2]), turn]), np.zeros(3), scan,
+                          pair_tracks(centre=rot((5.0, 0.0)), axis=1.3 + turn))  # fmt: skip
+    np.testing.assert_allclose(moved, base, atol=1e-5)
+
+
+def test_lidar_groups_settings_are_checked():
+    for bad in (-0.1, 1.0, 2.0):
+        with pytest.raises(ValueError, match=r"lidar_groups must be in \[0, 1\)"):
+            ObservationConfig(lidar_groups=bad)
+    with pytest.raises(ValueError, match="group_distance must be > 0"):
+        ObservationConfig(group_distance=0.0)
+    with pytest.raises(ValueError, match="needs the lidar's beam angles"):
+        ObservationBuilder(ObservationConfig(lidar_groups=0.01), 181, 25.0, 0.5, 0.0, 1.0)
+
+
 # ------------------------------------------------------------------ robot settings
 def test_robot_settings_drive_the_metric_parameters():
     big = RobotConfig(radius=0.45, v_max=0.8)

@@ -327,6 +327,23 @@ def test_init_starts_from_a_trained_model(tmp_path):
               log=lambda line: None, init=first.out,
               env_kwargs={"observation": {"lidar_encoding": "log"}})  # fmt: skip
     assert not (tmp_path / "f").exists()
+    # ... unless asked to fine-tune it to the new settings: it starts from the same weights,
+    # records the new settings and run.json keeps the model's
+    groups = {"observation": {"lidar_groups": 0.01}}
+    with pytest.raises(InputError, match="--init-new-observation fine-tunes it"):
+        train("SRPB-Corridor-v0", config, out=str(tmp_path / "f"), progress=False,
+              log=lambda line: None, init=first.out, env_kwargs=groups)  # fmt: skip
+    train("SRPB-Corridor-v0", config, out=str(tmp_path / "h"), progress=False,
+          log=lambda line: None, init=first.out, env_kwargs=groups,
+          init_new_observation=True)  # fmt: skip
+    init = json.loads((tmp_path / "h" / "run.json").read_text())["init"]
+    assert init["observation"] == dataclasses.asdict(ObservationConfig())
+    recorded = getattr(PPO.load(tmp_path / "h" / "model.zip"), OBSERVATION_RECORD)
+    assert recorded == dataclasses.asdict(ObservationConfig(lidar_groups=0.01))
+    with pytest.raises(InputError, match="names no model to start from"):
+        train("SRPB-Corridor-v0", config, out=str(tmp_path / "i"), progress=False,
+              log=lambda line: None, init_new_observation=True)  # fmt: skip
+    assert not (tmp_path / "i").exists()
     (tmp_path / "bad.zip").write_text("not a model")  # named, and no run folder left
     with pytest.raises(InputError, match="not a stable-baselines3 model"):
         train("SRPB-Corridor-v0", config, out=str(tmp_path / "g"), progress=False,

@@ -16,8 +16,8 @@ finish sooner than one after the other.
 Some models start from something else than random weights, as their cards say: a warm
 start from a classical planner's demonstrations (``pretrain_planner``: ``dwa`` or
 ``social-dwa``), or the best checkpoint of another model's recipe, run first, that this
-model's run then fine-tunes (``--init``: ``ppo-crowd-srpb`` fine-tunes a new
-``ppo-crowd-task``); the two stages together stay within ``--max-minutes``. The
+model's run then fine-tunes (:attr:`RunSettings.start`, ``--init``); the two stages
+together stay within ``--max-minutes``. The
 generalist is warm-started from the specialists, a teacher per scenario
 (:attr:`RunSettings.teachers`): they are retrained first when named too (or when all
 models are retrained), otherwise the shipped ones teach.
@@ -62,7 +62,9 @@ class RunSettings:
     fformation ``task`` model drifts towards the standing pair); ``validate``: ship best/
     or the final model, whichever is better on that many validation seeds
     (``training.ship --validate``), instead of best/; ``teachers``: (scenario, model)
-    pairs of the warm start (``pretrain_teachers``), each a model of this script."""
+    pairs of the warm start (``pretrain_teachers``), each a model of this script;
+    ``new_observation``: the run observes with other settings than its ``start`` (of the
+    same shape) and fine-tunes it to them (``--init-new-observation``)."""
 
     seed: int = 0
     overrides: tuple[str, ...] = ()
@@ -71,6 +73,7 @@ class RunSettings:
     validate: int = 0
     env_kwargs: tuple[str, ...] = ()
     teachers: tuple[tuple[str, str], ...] = ()
+    new_observation: bool = False
 
 
 WARM_START = ("pretrain_planner=dwa", "pretrain_episodes=150")
@@ -179,6 +182,7 @@ def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
     out.append(_train(name, own, run, threads))
     if settings.start is not None:
         out[-1] += ["--init", f"{first}/best"]
+        out[-1] += ["--init-new-observation"] if settings.new_observation else []
     ship = [sys.executable, "-m", "training.ship", run, "--name", name]
     if settings.validate:
         ship += ["--validate", str(settings.validate)]

@@ -466,11 +466,13 @@ class LearnedPolicy(Planner):
                             "and needs the Knowledge snapshot: act(observation, "
                             "env.unwrapped.knowledge())")  # fmt: skip
         sensors = (knowledge.robot, knowledge.scan.shape[0], knowledge.range_min,
-                   knowledge.range_max)  # fmt: skip
+                   knowledge.range_max, knowledge.scan_angles.tobytes())  # fmt: skip
         if self._builder is None or sensors != self._sensors:
             assert self.observation_config is not None
             try:
-                self._builder = ObservationBuilder.for_robot(self.observation_config, *sensors)
+                self._builder = ObservationBuilder.for_robot(
+                    self.observation_config, *sensors[:4], knowledge.scan_angles
+                )
             except InputError as exc:
                 raise ValueError(f"{self.path}: {exc.message} (its recorded observation "
                                  "settings)") from None  # fmt: skip

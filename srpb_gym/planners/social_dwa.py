@@ -29,9 +29,9 @@ from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
 from srpb_gym.metrics import kernels
-from srpb_gym.metrics.episode import group_ellipses
 from srpb_gym.metrics.kernels import gauss
 from srpb_gym.metrics.params import MetricParams
+from srpb_gym.perception.groups import detect_groups, ospace_gaussians
 from srpb_gym.perception.tracker import Tracks
 from srpb_gym.planners.base import Knowledge
 from srpb_gym.planners.config import SettingError
@@ -97,40 +97,6 @@ def ospace_layer(cost, x0, y0, res, ell, cov, weight, spread, reach):
             for i in range(i0, i1):
                 dx = x0 + (i + 0.5) * res - cx
                 cost[j, i] += weight * gauss(dx / spread, dy / spread, sxx, off, off, syy)
-
-
-def detect_groups(
-    tracks: Tracks, standing_speed: float = 0.3, distance: float = 2.0, min_age: float = 1.0
-) -> tuple[NDArray[np.int64], NDArray[np.int64], NDArray[np.int64]]:
-    """F-formations among the tracks: connected sets of at least two standing tracks
-    (slower than ``standing_speed`` [m/s], tracked for ``min_age`` [s] at least: new tracks
-    start at rest) each within ``distance`` [m] of another.
-
-    Returns (members, start, size) in the layout of the metric code: group g's member
-    track rows are ``members[start[g] : start[g] + size[g]]``.
-    """
-    speed = np.hypot(*tracks.velocity.T)
-    still = np.flatnonzero((speed < standing_speed) & (tracks.age >= min_age))
-    empty = np.zeros(0, np.int64)
-    if still.size < 2:
-        return empty, empty, empty
-    xy = tracks.xy[still]
-    reach = np.hypot(xy[:, None, 0] - xy[None, :, 0], xy[:, None, 1] - xy[None, :, 1]) < distance
-    for _ in range(still.size):  # transitive closure: connected components
-        grown = (reach.astype(np.int64) @ reach.astype(np.int64)) > 0
-        if np.array_equal(grown, reach):
-            break
-        reach = grown
-    label = reach.argmax(axis=1)  # the component's first member
-    order = np.argsort(label, kind="stable")
-    labels, size = np.unique(label[order], return_counts=True)
-    keep = size >= 2
-    if not keep.any():
-        return empty, empty, empty
-    in_group = keep[np.searchsorted(labels, label[order])]
-    members = still[order][in_group].astype(np.int64)
-    size = size[keep].astype(np.int64)
-    return members, np.cumsum(size) - size, size
 
 
 @dataclass(frozen=True)
@@ -258,19 +224,7 @@ class SocialDWA(DWA):
         """(G, 8) O-space ellipse and covariance (sxx, sxy, syy) of each group seen now."""
         cfg = self.config
         members, start, size = detect_groups(tracks, cfg.group_speed, cfg.group_distance)
-        g = size.shape[0]
-        if g == 0:
-            return np.zeros((0, 8))
-        px, py = np.ascontiguousarray(tracks.xy[:, 0]), np.ascontiguousarray(tracks.xy[:, 1])
-        ellipses, _ = group_ellipses(px, py, members, start, size, self.params, False)
-        cov = tracks.covariance
-        sxx, sxy, syy = np.empty(g), np.empty(g), np.empty(g)
-        kernels.group_covariances(
-            np.ascontiguousarray(cov[:, 0, 0]), np.ascontiguousarray(cov[:, 0, 1]),
-            np.ascontiguousarray(cov[:, 1, 0]), np.ascontiguousarray(cov[:, 1, 1]),
-            members, start, size, False, sxx, sxy, syy,
-        )  # fmt: skip
-        return np.column_stack([ellipses, sxx, sxy, syy])
+        return ospace_gaussians(tracks, members, start, size, self.params)
 
     def _layers(self, knowledge: Knowledge, cost: NDArray[np.float64]) -> None:
         """The personal-space and O-space layers of the global planner's cost grid."""

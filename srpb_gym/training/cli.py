@@ -52,6 +52,11 @@ def add_train_command(subparsers: Any) -> None:
     p.add_argument("--init", metavar="MODEL",
                    help="start from a trained model (model.zip, its run folder or a shipped "
                    "model's name, e.g. ppo-crowd-task) instead of random weights")  # fmt: skip
+    p.add_argument("--init-new-observation", action="store_true",
+                   help="start from --init although it observed with other settings of the "
+                   "same shape, to fine-tune it to this run's (e.g. --env-kwargs "
+                   "'observation={lidar_groups: 0.01}'); without it such a model is "
+                   "refused")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run_train)
 
@@ -74,7 +79,7 @@ def run_train(args: argparse.Namespace) -> int:
     result = train(args.env, config, preset=args.reward, seed=args.seed, out=args.out,
                    env_kwargs=env_kwargs, progress=not args.no_progress,
                    argv=getattr(args, "argv", ()), max_minutes=args.max_minutes,
-                   init=args.init,
+                   init=args.init, init_new_observation=args.init_new_observation,
                    log=lambda line: print(f"srpb-gym: {line}", file=sys.stderr))  # fmt: skip
     state = "interrupted" if result.interrupted else "finished"
     print(f"{state} after {result.steps} steps in {result.wall_time:.0f} s; run in {result.out}")

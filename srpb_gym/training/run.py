@@ -246,13 +246,17 @@ def train(
     device: str = "cpu",
     max_minutes: float | None = None,
     init: str | None = None,
+    init_new_observation: bool = False,
 ) -> TrainResult:
     """Train PPO on ``env_id`` with reward preset ``preset``; see the module docstring.
     ``max_minutes``: stop after this much wall time even if steps remain (``run.json``
     then says ``"time_limit_reached": true``). ``init``: start from the weights and
     observation statistics of a trained model (its ``model.zip``, the run folder holding
     it, or a shipped model's name) instead of random weights; the reward statistics start
-    afresh, as the reward may differ (fine-tuning a ``task`` model with ``srpb``)."""
+    afresh, as the reward may differ (fine-tuning a ``task`` model with ``srpb``). A model
+    recorded with other observation settings is refused unless ``init_new_observation``
+    (the shapes must match either way: a fine-tune to the new settings; ``run.json`` keeps
+    the model's settings as ``init.observation``)."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.logger import Logger, make_output_format
@@ -268,6 +272,8 @@ def train(
         raise InputError("start from a trained model or from demonstrations "
                          "(pretrain_planner, pretrain_teachers), not both",
                          key="--init")  # fmt: skip
+    if init_new_observation and init is None:
+        raise InputError("names no model to start from (--init)", key="--init-new-observation")
     init_model = None if init is None else resolve_init(init)
     kwargs = {"reward": preset, **env_kwargs}
     if config.torch_threads > 0:
@@ -289,13 +295,15 @@ def train(
         record_observation(model, observation)
         if init_model is not None:
             try:
-                _load_init(model, venv, *init_model, observation)
+                init_observation = _load_init(model, venv, *init_model, observation,
+                                              init_new_observation)  # fmt: skip
             except InputError:  # nothing trained: leave no run folder behind
                 shutil.rmtree(out, ignore_errors=True)
                 raise
             _update_run_json(out, {"init": {"model": init_model[0],
                                             "vecnormalize": init_model[1],
-                                            "steps": model_steps(init_model[0])}})  # fmt: skip
+                                            "steps": model_steps(init_model[0]),
+                                            "observation": init_observation}})  # fmt: skip
             log(f"starting from {init_model[0]}")
         if config.pretrain_planner or config.pretrain_teachers:
             from srpb_gym.training.pretrain import pretrain
@@ -374,7 +382,11 @@ def model_steps(path: str) -> int:
 
 
 def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
-               observation: ObservationConfig) -> None:  # fmt: skip
+               observation: ObservationConfig, new_observation: bool = False,
+               ) -> dict[str, Any] | None:  # fmt: skip
+    """Load ``path``'s weights and statistics into ``model`` and ``venv``; returns the
+    model's recorded observation settings (``None``: no record). ``new_observation``:
+    accept a record that differs from ``observation``."""
     from stable_baselines3.common.vec_env import VecNormalize
 
     from srpb_gym.planners.learned import (
@@ -391,11 +403,14 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
     why = observation_mismatch(record, observation)
     if why is not None:
         try:
-            hint = settings_text(recorded_observation(record), observation)
-            why += f" (start from it with --env-kwargs 'observation={hint}')"
+            recorded = recorded_observation(record)
         except ValueError:  # an invalid record: the reason says why
-            pass
-        raise InputError(f"{path}: {why}", key="--init")
+            raise InputError(f"{path}: {why}", key="--init") from None
+        if not new_observation:
+            hint = settings_text(recorded, observation)
+            raise InputError(f"{path}: {why} (start from it with --env-kwargs "
+                             f"'observation={hint}'); --init-new-observation fine-tunes it "
+                             "to this run's settings", key="--init")  # fmt: skip
 
     try:
         model.set_parameters(path, exact_match=True, device=model.device)
@@ -407,7 +422,7 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
             raise InputError(f"{path}: trained on observations normalised by "
                              f"{vecnormalize}; this run does not normalise (normalize: false)",
                              key="--init")  # fmt: skip
-        return
+        return record
     if vecnormalize is None:
         raise InputError(f"{path}: no vecnormalize.pkl beside it, and this run normalises "
                          "observations (normalize: true)", key="--init")  # fmt: skip
@@ -417,6 +432,7 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
                          f"observations, this environment has {venv.obs_rms.mean.shape}",
                          key="--init")  # fmt: skip
     venv.obs_rms = saved.obs_rms.copy()
+    return record
 
 
 def _stop_on_sigterm() -> Any:

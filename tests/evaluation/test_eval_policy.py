@@ -4,6 +4,7 @@ where training puts them (and said), spaces checked, every bad file named."""
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import shutil
 import subprocess
@@ -325,6 +326,8 @@ LIDAR = {"sensors": {"lidar": {"range_min": 0.3, "n_beams": 90}}}  # not the def
         ("SRPB-Crowd-v0", {"lidar_encoding": "log"}, {"robot": {"v_max": 0.8, "w_max": 2.0}}),
         ("SRPB-Mix-v0", {"lidar_encoding": "log", "lidar_bins": 12}, {}),
         ("parallel", {"lidar_encoding": "log"}, LIDAR),
+        ("SRPB-Crowd-v0", {"lidar_encoding": "log", "lidar_groups": 0.01}, {}),
+        ("parallel", {"lidar_groups": 0.05, "group_distance": 2.8}, LIDAR),
     ],
 )
 def test_the_own_observation_equals_the_environments(models, make, observation, kwargs):
@@ -337,7 +340,21 @@ def test_the_own_observation_equals_the_environments(models, make, observation, 
     from srpb_gym.planners.learned import LearnedPolicy
 
     policy = LearnedPolicy(models / "ppo.zip", vecnormalize=None)
-    policy.observation_config = ObservationConfig.from_spec(observation)
+    config = ObservationConfig.from_spec(observation)
+    policy.observation_config = config
+    without_groups = LearnedPolicy(models / "ppo.zip", vecnormalize=None)
+    without_groups.observation_config = dataclasses.replace(config, lidar_groups=0.0)
+    drawn = 0  # steps where an O-space shows in the lidar (lidar_groups)
+
+    def own_observation(k):
+        nonlocal drawn
+        own = policy._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
+        if config.lidar_groups:
+            plain = without_groups._observer(k).build(k.pose, k.goal, k.velocity, k.scan,
+                                                      k.tracks)  # fmt: skip
+            drawn += not np.array_equal(own, plain)
+        return own
+
     rng = np.random.default_rng(0)
     if make == "parallel":
         env = srpb_gym.parallel_env(scenario="crowd", n_robots=3, observation=observation,
@@ -345,17 +362,15 @@ def test_the_own_observation_equals_the_environments(models, make, observation, 
         obs, _ = env.reset(seed=3)
         for _ in range(40):
             for agent in env.agents:
-                k = env.knowledge(agent)
-                own = policy._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
-                np.testing.assert_array_equal(own, obs[agent])
+                np.testing.assert_array_equal(own_observation(env.knowledge(agent)), obs[agent])
             obs, *_ = env.step({a: rng.uniform(-1, 1, 2) for a in env.agents})
+        assert drawn > 0 or not config.lidar_groups
         return
     env = gym.make(make, observation=observation, **kwargs)
     for seed in (0, 1):
         obs, _ = env.reset(seed=seed)
         for _ in range(60):
-            k = env.unwrapped.knowledge()
-            own = policy._observer(k).build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
+            own = own_observation(env.unwrapped.knowledge())
             if isinstance(obs, dict):
                 assert own.keys() == obs.keys()
                 for key in obs:
@@ -365,3 +380,4 @@ def test_the_own_observation_equals_the_environments(models, make, observation, 
             obs, _, terminated, truncated, _ = env.step(rng.uniform(-1, 1, 2))
             if terminated or truncated:
                 break
+    assert drawn > 0 or not config.lidar_groups

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import srpb_gym  # noqa: F401 - registers the environments
+from srpb_gym.perception.groups import detect_groups
 from srpb_gym.perception.tracker import Tracks
 from srpb_gym.planners import (
     DWA,
@@ -30,7 +31,6 @@ from srpb_gym.planners import (
     social_dwa,
     social_force,
 )
-from srpb_gym.planners.social_dwa import detect_groups
 
 CLASSICAL = ["dwa", "social-dwa", "social-force"]
 IDS = {
