@@ -93,7 +93,7 @@ def test_eval_takes_a_short_name(name, tmp_path, capsys):
         assert [r["planner"] for r in csv.DictReader(f)] == [name]
 
 
-def test_retraining_commands_follow_each_model_recipe():
+def test_retraining_commands_follow_each_model_recipe(monkeypatch):
     from training.retrain_models import RUN_SETTINGS, RunSettings, commands
 
     plain = commands("ppo-crowd-task", 60, 0)
@@ -112,6 +112,20 @@ def test_retraining_commands_follow_each_model_recipe():
     assert kwargs[0] == "weights=[1, 1, 3, 2, 3]" and kwargs[1].startswith("reward_weights={obs")
     # both crowd stages observe the lidar log-encoded
     assert plain[0][plain[0].index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
+    crowd = commands("ppo-crowd-srpb", 60, 0)
+    assert len(crowd) == 2 and "--init" not in crowd[0]
+    hyper = crowd[0][crowd[0].index("--hyperparams") + 1 :]
+    assert "pretrain_planner=social-dwa" in hyper and "learning_rate=1e-4" in hyper
+    kwargs = crowd[0][crowd[0].index("--env-kwargs") + 1 : crowd[0].index("--hyperparams")]
+    assert kwargs == ["observation={lidar_encoding: log, lidar_groups: 0.0001}",
+                      "reward_weights={fsi: -3.0, collision: -50.0}"]  # fmt: skip
+    assert crowd[1][crowd[1].index("--validate") + 1] == "100"
+    # a model fine-tuning the best checkpoint of another model's recipe, run first, with
+    # other observation settings
+    staged = RunSettings(overrides=("learning_rate=5e-5",), start="ppo-crowd-task",
+                         validate=100, env_kwargs=("observation={lidar_groups: 0.01}",),
+                         new_observation=True)  # fmt: skip
+    monkeypatch.setitem(RUN_SETTINGS, "ppo-crowd-srpb", staged)
     start, fine, ship = commands("ppo-crowd-srpb", 60, 0)
     assert start[start.index("--reward") + 1] == "task"
     assert fine[fine.index("--reward") + 1] == "srpb"
@@ -120,8 +134,9 @@ def test_retraining_commands_follow_each_model_recipe():
         start[start.index("--hyperparams") + 1 :] == plain[0][plain[0].index("--hyperparams") + 1 :]
     )
     assert fine[fine.index("--hyperparams") + 1 : fine.index("--init")] == ["learning_rate=5e-5"]
-    for stage in (start, fine):
-        assert stage[stage.index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
+    assert start[start.index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
+    assert fine[fine.index("--env-kwargs") + 1] == "observation={lidar_groups: 0.01}"
+    assert fine[-1] == "--init-new-observation"
     assert "--env-kwargs" not in commands("ppo-corridor-task", 60, 0)[0]
     first = start[start.index("--out") + 1]
     assert fine[fine.index("--init") + 1] == f"{first}/best"
@@ -129,6 +144,9 @@ def test_retraining_commands_follow_each_model_recipe():
     assert minutes + float(fine[fine.index("--max-minutes") + 1]) == 60
     assert ship[ship.index("--name") + 1] == "ppo-crowd-srpb"
     assert ship[ship.index("--validate") + 1] == "100"
+    monkeypatch.setitem(RUN_SETTINGS, "ppo-crowd-srpb", dataclasses.replace(
+        staged, new_observation=False))  # fmt: skip
+    assert "--init-new-observation" not in commands("ppo-crowd-srpb", 60, 0)[1]
     assert "--validate" not in commands("ppo-corridor-task", 60, 0)[-1]
     short = commands("ppo-fformation-srpb", 60, 0)[0]  # its own wall time, within the 60
     assert short[short.index("--max-minutes") + 1] == "10"

@@ -83,6 +83,14 @@ LARGE_ROLLOUT = ("n_envs=8", "n_steps=1024", "batch_size=512")
 #: model reached 85 % on the validation seeds (0 % success until 450,000 steps), with the
 #: log encoding 88-90 % (80 % after 300,000 steps), and its srpb fine-tune 95 % against 87 %
 LOG_LIDAR = "observation={lidar_encoding: log}"
+#: the crowd srpb model sees the standing groups' O-spaces in its lidar, out to where
+#: their fsi value falls to 1e-4 (85 % on the validation seeds, m_psi 18.8 %, m_fsi
+#: 1.9e-6 %; at 0.01: 86 %, 23.5 %, 1.1e-5 %; none drawn: 78-82 %, 18.5-19.2 %, about
+#: 1e-6 %, so they are not shown to matter), and starts from a clone of social-dwa, which
+#: goes around the standing pairs (fine-tunes of ppo-crowd-task, which crosses them, kept
+#: crossing with the O-spaces drawn and five times the fsi weight)
+CROWD_GROUPS = "observation={lidar_encoding: log, lidar_groups: 0.0001}"
+SOCIAL_CROWD_START = ("pretrain_planner=social-dwa", "pretrain_episodes=100")
 #: the generalist's teachers: a specialist per scenario, for crowd the task model (it
 #: reached the goal in more of the demonstration episodes than the srpb fine-tune of the
 #: model before it); each observes with its own settings, the student log-encoded (the
@@ -102,8 +110,10 @@ GENERALIST_TEACHERS = (
 #: social-dwa, which walks around the pair; from a clone of dwa, which walks between its
 #: members, neither preset left the O-space); crowd: the task
 #: specialist learns with 1e-4 (3e-4 declined after its peak), the srpb specialist
-#: fine-tunes it with 5e-5 (better than 1e-4 on the validation seeds, 87 % against 86 %;
-#: from random weights the srpb preset learns to wait); the crossing specialist starts
+#: from a clone of social-dwa with 1e-4, five times the preset's fsi weight (collision
+#: -50 keeps the bound) and the O-spaces in its lidar (:data:`CROWD_GROUPS`; from random
+#: weights the srpb preset learns to wait; the srpb fine-tune of the task model, shipped
+#: before, crossed the standing pairs); the crossing specialist starts
 #: from the clone of dwa and learns with 5e-5 (with 3e-4 it stalled beside the goal: 62 %
 #: against 99 % on the validation seeds); the doorway specialist from the clone of dwa
 #: with 1e-4 (68 % on the validation seeds after 30 minutes; with 5e-5 its evaluations
@@ -131,11 +141,10 @@ RUN_SETTINGS: dict[str, RunSettings] = {
         overrides=("learning_rate=1e-4",), minutes=28.0, env_kwargs=(LOG_LIDAR,)
     ),
     "ppo-crowd-srpb": RunSettings(
-        overrides=("learning_rate=5e-5",),
-        start="ppo-crowd-task",
+        overrides=("learning_rate=1e-4", *SOCIAL_CROWD_START, *LARGE_ROLLOUT),
         minutes=32.0,
         validate=100,
-        env_kwargs=(LOG_LIDAR,),
+        env_kwargs=(CROWD_GROUPS, "reward_weights={fsi: -3.0, collision: -50.0}"),
     ),
     "ppo-crossing-srpb": RunSettings(
         overrides=("learning_rate=5e-5", *WARM_START, *LARGE_ROLLOUT),
