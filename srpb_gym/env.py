@@ -87,11 +87,12 @@ class SRPBNavEnv(gym.Env):
     0.013 instead of 0.001, so that a policy can tell the clearance of a door (a range_min
     below range_max / 1000 is taken as range_max / 1000). ``lidar_groups=0.01`` draws the
     O-spaces of the groups standing among the tracks into the lidar sectors, out to where
-    their ``fsi`` value falls to 0.01 (groups: tracks slower than 0.3 m/s within
-    ``group_distance``, 3 m, of another), so that the robot sees an F-formation as an
-    obstacle; the physical lidar and the reward are unchanged (0: none, the default; see
-    :mod:`srpb_gym.observation`). Models trained by ``srpb-gym train`` record these
-    settings and observe with them in any environment (:mod:`srpb_gym.planners.learned`).
+    their ``fsi`` value falls to 0.01 (groups: tracks slower than 0.3 m/s, tracked for 1 s
+    or more, within ``group_distance``, 3 m, of another), so that the robot sees an
+    F-formation as an obstacle; the physical lidar and the reward are unchanged (0: none,
+    the default; see :mod:`srpb_gym.observation`). Models trained by ``srpb-gym train``
+    record these settings and observe with them in any environment
+    (:mod:`srpb_gym.planners.learned`).
 
     ## Rewards
     A weighted sum of named terms (:mod:`srpb_gym.reward`): task terms ``progress``,

@@ -32,8 +32,10 @@ none. The groups are found among the tracks, as a planner must find them
 than 0.3 m/s and tracked for 1 s or more, each within ``group_distance`` of another); the
 O-space is the ``fsi`` metric's Gaussian of the metric's small-group ellipse (centre the
 members' mean, semi-axes half the longest distance between two members and the members'
-spread across it, standard deviations half those) plus the members' largest tracking
-covariance (the metric fits an ellipse to groups of five or more instead). At 0.01 a
+spread across it, or the occupancy radius d_ocp = 0.28 m for members in a line such as a
+pair; standard deviations half those) plus the members' largest tracking covariance (the
+metric fits an ellipse to groups of five or more instead). ``group_distance`` is 3 m,
+not ``social-dwa``'s 2 m: the pairs of ``crowd`` stand 2.4-2.6 m apart. At 0.01 a
 standing pair 2.5 m apart, tracked to 0.003 m^2, is drawn as an ellipse 3.8 m long and
 0.9 m across: the robot sees an obstacle between and around the two. The physical lidar,
 the people slots and the reward are unchanged; a contour the robot is inside is not drawn.
@@ -258,7 +260,7 @@ class ObservationBuilder:
         if self._groups:
             if angles is None or np.shape(angles) != (n_beams,):
                 raise ValueError("lidar_groups needs the lidar's beam angles (n_beams,)")
-            self._angles = np.ascontiguousarray(angles, dtype=np.float64)
+            self._angles = np.array(angles, dtype=np.float64)  # a writable copy: one kernel
             self._scan = np.empty(n_beams)
             self._radius2 = -2.0 * math.log(config.lidar_groups)
             self._occupancy = MetricParams().person_occupancy_radius

@@ -16,8 +16,8 @@ finish sooner than one after the other.
 Some models start from something else than random weights, as their cards say: a warm
 start from a classical planner's demonstrations (``pretrain_planner``: ``dwa`` or
 ``social-dwa``), or the best checkpoint of another model's recipe, run first, that this
-model's run then fine-tunes (:attr:`RunSettings.start`, ``--init``); the two stages
-together stay within ``--max-minutes``. The
+model's run then fine-tunes (:attr:`RunSettings.start`, ``--init``; no shipped recipe
+does now); the two stages together stay within ``--max-minutes``. The
 generalist is warm-started from the specialists, a teacher per scenario
 (:attr:`RunSettings.teachers`): they are retrained first when named too (or when all
 models are retrained), otherwise the shipped ones teach.

@@ -23,6 +23,7 @@ training process handles it.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import platform
@@ -385,8 +386,8 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
                observation: ObservationConfig, new_observation: bool = False,
                ) -> dict[str, Any] | None:  # fmt: skip
     """Load ``path``'s weights and statistics into ``model`` and ``venv``; returns the
-    model's recorded observation settings (``None``: no record). ``new_observation``:
-    accept a record that differs from ``observation``."""
+    model's recorded observation settings, every one (``None``: no record).
+    ``new_observation``: accept a record that differs from ``observation``."""
     from stable_baselines3.common.vec_env import VecNormalize
 
     from srpb_gym.planners.learned import (
@@ -412,6 +413,7 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
                              f"'observation={hint}'); --init-new-observation fine-tunes it "
                              "to this run's settings", key="--init")  # fmt: skip
 
+    settings = None if record is None else dataclasses.asdict(recorded_observation(record))
     try:
         model.set_parameters(path, exact_match=True, device=model.device)
     except (RuntimeError, ValueError, KeyError) as exc:
@@ -422,7 +424,7 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
             raise InputError(f"{path}: trained on observations normalised by "
                              f"{vecnormalize}; this run does not normalise (normalize: false)",
                              key="--init")  # fmt: skip
-        return record
+        return settings
     if vecnormalize is None:
         raise InputError(f"{path}: no vecnormalize.pkl beside it, and this run normalises "
                          "observations (normalize: true)", key="--init")  # fmt: skip
@@ -432,7 +434,7 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
                          f"observations, this environment has {venv.obs_rms.mean.shape}",
                          key="--init")  # fmt: skip
     venv.obs_rms = saved.obs_rms.copy()
-    return record
+    return settings
 
 
 def _stop_on_sigterm() -> Any:
