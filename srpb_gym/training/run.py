@@ -402,18 +402,18 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
     except PolicyFileError as exc:
         raise InputError(exc.reason, exc.path, key="--init") from None
     why = observation_mismatch(record, observation)
-    if why is not None:
+    recorded = None
+    if record is not None:
         try:
             recorded = recorded_observation(record)
-        except ValueError:  # an invalid record: the reason says why
+        except ValueError:  # an invalid record: the mismatch says why
             raise InputError(f"{path}: {why}", key="--init") from None
-        if not new_observation:
-            hint = settings_text(recorded, observation)
-            raise InputError(f"{path}: {why} (start from it with --env-kwargs "
-                             f"'observation={hint}'); --init-new-observation fine-tunes it "
-                             "to this run's settings", key="--init")  # fmt: skip
-
-    settings = None if record is None else dataclasses.asdict(recorded_observation(record))
+    if why is not None and not new_observation:
+        hint = settings_text(recorded, observation)
+        raise InputError(f"{path}: {why} (start from it with --env-kwargs "
+                         f"'observation={hint}'); --init-new-observation fine-tunes it "
+                         "to this run's settings", key="--init")  # fmt: skip
+    settings = None if recorded is None else dataclasses.asdict(recorded)
     try:
         model.set_parameters(path, exact_match=True, device=model.device)
     except (RuntimeError, ValueError, KeyError) as exc:
