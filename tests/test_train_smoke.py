@@ -7,6 +7,7 @@ import csv
 import dataclasses
 import json
 import shlex
+import shutil
 
 import pytest
 import yaml
@@ -340,6 +341,25 @@ def test_init_starts_from_a_trained_model(tmp_path):
     assert init["observation"] == dataclasses.asdict(ObservationConfig())
     recorded = getattr(PPO.load(tmp_path / "h" / "model.zip"), OBSERVATION_RECORD)
     assert recorded == dataclasses.asdict(ObservationConfig(lidar_groups=0.01))
+    # a model saved without the record (e.g. by rl_zoo3) is taken to observe as the run
+    # does, and the run says so
+    bare = PPO.load(path)
+    delattr(bare, OBSERVATION_RECORD)
+    (tmp_path / "bare").mkdir()
+    bare.save(tmp_path / "bare" / "model.zip")
+    shutil.copy(stats, tmp_path / "bare" / "vecnormalize.pkl")
+    lines = []
+    train("SRPB-Corridor-v0", config, out=str(tmp_path / "j"), progress=False,
+          log=lines.append, init=str(tmp_path / "bare"),
+          env_kwargs={"observation": {"lidar_encoding": "log"}})  # fmt: skip
+    assert lines[1] == (
+        f"note: {tmp_path / 'bare' / 'model.zip'} records no observation "
+        "settings (not saved by srpb-gym train): taken to observe as this "
+        "run does, observation={lidar_encoding: log}; its new record says so"
+    )
+    assert json.loads((tmp_path / "j" / "run.json").read_text())["init"]["observation"] is None
+    recorded = getattr(PPO.load(tmp_path / "j" / "model.zip"), OBSERVATION_RECORD)
+    assert recorded["lidar_encoding"] == "log"
     with pytest.raises(InputError, match="names no model to start from"):
         train("SRPB-Corridor-v0", config, out=str(tmp_path / "i"), progress=False,
               log=lambda line: None, init_new_observation=True)  # fmt: skip

@@ -306,6 +306,12 @@ def train(
                                             "steps": model_steps(init_model[0]),
                                             "observation": init_observation}})  # fmt: skip
             log(f"starting from {init_model[0]}")
+            if init_observation is None:
+                named = settings_text(observation, ObservationConfig())
+                log(f"note: {init_model[0]} records no observation settings (not saved by "
+                    f"srpb-gym train): taken to observe as this run does, "
+                    f"observation={named if named != '{}' else 'default'}; its new record "
+                    "says so")  # fmt: skip
         if config.pretrain_planner or config.pretrain_teachers:
             from srpb_gym.training.pretrain import pretrain
 
