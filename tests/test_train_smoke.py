@@ -348,18 +348,20 @@ def test_init_starts_from_a_trained_model(tmp_path):
     (tmp_path / "bare").mkdir()
     bare.save(tmp_path / "bare" / "model.zip")
     shutil.copy(stats, tmp_path / "bare" / "vecnormalize.pkl")
-    lines = []
-    train("SRPB-Corridor-v0", config, out=str(tmp_path / "j"), progress=False,
-          log=lines.append, init=str(tmp_path / "bare"),
-          env_kwargs={"observation": {"lidar_encoding": "log"}})  # fmt: skip
-    assert lines[1] == (
-        f"note: {tmp_path / 'bare' / 'model.zip'} records no observation "
-        "settings (not saved by srpb-gym train): taken to observe as this "
-        "run does, observation={lidar_encoding: log}; its new record says so"
-    )
-    assert json.loads((tmp_path / "j" / "run.json").read_text())["init"]["observation"] is None
-    recorded = getattr(PPO.load(tmp_path / "j" / "model.zip"), OBSERVATION_RECORD)
-    assert recorded["lidar_encoding"] == "log"
+    for name, kwargs, said in (("j", {"observation": {"lidar_encoding": "log"}},
+                                "{lidar_encoding: log}"), ("k", {}, "default")):  # fmt: skip
+        lines = []
+        train("SRPB-Corridor-v0", config, out=str(tmp_path / name), progress=False,
+              log=lines.append, init=str(tmp_path / "bare"), env_kwargs=kwargs)  # fmt: skip
+        assert lines[1] == (
+            f"note: {tmp_path / 'bare' / 'model.zip'} records no observation settings (not "
+            f"saved by srpb-gym train): taken to observe as this run does, observation={said}, "
+            "and the new model records these settings"
+        )
+        run = json.loads((tmp_path / name / "run.json").read_text())
+        assert run["init"]["observation"] is None
+        recorded = getattr(PPO.load(tmp_path / name / "model.zip"), OBSERVATION_RECORD)
+        assert recorded == dataclasses.asdict(ObservationConfig(**kwargs.get("observation", {})))
     with pytest.raises(InputError, match="names no model to start from"):
         train("SRPB-Corridor-v0", config, out=str(tmp_path / "i"), progress=False,
               log=lambda line: None, init_new_observation=True)  # fmt: skip

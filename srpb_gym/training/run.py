@@ -310,8 +310,8 @@ def train(
                 named = settings_text(observation, ObservationConfig())
                 log(f"note: {init_model[0]} records no observation settings (not saved by "
                     f"srpb-gym train): taken to observe as this run does, "
-                    f"observation={named if named != '{}' else 'default'}; its new record "
-                    "says so")  # fmt: skip
+                    f"observation={named if named != '{}' else 'default'}, and the new "
+                    "model records these settings")  # fmt: skip
         if config.pretrain_planner or config.pretrain_teachers:
             from srpb_gym.training.pretrain import pretrain
 
