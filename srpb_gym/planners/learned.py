@@ -311,10 +311,16 @@ def observation_mismatch(trained: Any, given: ObservationConfig,
         model_config = recorded_observation(trained)
     except ValueError as exc:
         return str(exc)
-    if model_config == given:
+    return settings_mismatch(model_config, given, other)
+
+
+def settings_mismatch(trained: ObservationConfig, given: ObservationConfig,
+                      other: str = "this run observes with") -> str | None:  # fmt: skip
+    """:func:`observation_mismatch` of a record already read into ``trained``."""
+    if trained == given:
         return None
-    return (f"it was trained with observation={settings_text(model_config, given)}, "
-            f"{other} observation={settings_text(given, model_config)}")  # fmt: skip
+    return (f"it was trained with observation={settings_text(trained, given)}, "
+            f"{other} observation={settings_text(given, trained)}")  # fmt: skip
 
 
 def settings_text(config: ObservationConfig, other: ObservationConfig) -> str:

@@ -44,9 +44,9 @@ from srpb_gym.evaluation.harness import versions
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.observation import ObservationConfig
 from srpb_gym.planners.learned import (
-    observation_mismatch,
     record_observation,
     recorded_observation,
+    settings_mismatch,
     settings_text,
 )
 from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
@@ -407,13 +407,13 @@ def _load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
         record = model_data(path).get(OBSERVATION_RECORD)
     except PolicyFileError as exc:
         raise InputError(exc.reason, exc.path, key="--init") from None
-    why = observation_mismatch(record, observation)
-    recorded = None
+    recorded, why = None, None
     if record is not None:
         try:
             recorded = recorded_observation(record)
-        except ValueError:  # an invalid record: the mismatch says why
-            raise InputError(f"{path}: {why}", key="--init") from None
+        except ValueError as exc:  # an invalid record: say why
+            raise InputError(f"{path}: {exc}", key="--init") from None
+        why = settings_mismatch(recorded, observation)
     if why is not None and not new_observation:
         hint = settings_text(recorded, observation)
         raise InputError(f"{path}: {why} (start from it with --env-kwargs "
