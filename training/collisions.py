@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
 
@@ -72,27 +73,32 @@ def run_planner(config: Any, env_id: str, spec: Any, window: float) -> Summary:
 
 
 def _episode(env: Any, planner: Any, seed: int, window: float, out: Summary) -> None:
+    """One episode, driven as ``srpb-gym eval`` drives it (``run_episode``)."""
+    from srpb_gym.evaluation.runner import run_episode
+
     base = env.unwrapped
-    obs, _ = env.reset(seed=seed)
-    planner.reset(base.knowledge())
-    sim = base.task.sim
-    dt = float(sim.config.control_dt)
+    dt = float(base.task.sim.config.control_dt)
     lag = max(1, round(window / dt))
-    path, touching = [sim.world.robot_pose[0, :2].copy()], False
-    while True:
-        obs, _, terminated, truncated, info = env.step(planner.act(obs, base.knowledge()))
-        path.append(sim.world.robot_pose[0, :2].copy())
+    touching = False
+
+    def on_step(info: dict[str, Any]) -> None:
+        nonlocal touching
         if info["collision"] and not touching:
-            out.collisions.append(_collision(sim.world, seed, path, lag, dt,
-                                             base.scenario.name))  # fmt: skip
+            out.collisions.append(_collision(base.task.sim.world, seed, _path(base.task.record),
+                                             lag, dt, base.scenario.name))  # fmt: skip
         touching = bool(info["collision"])
-        if terminated or truncated:
-            break
+
+    steps = run_episode(env, planner, seed, on_step=on_step)["steps"]
     out.episodes += 1
-    out.time += (len(path) - 1) * dt
+    out.time += steps * dt
 
 
-def _collision(world: Any, seed: int, path: list[Any], lag: int, dt: float,
+def _path(record: Any) -> NDArray[np.float64]:
+    """(N, 2) the robot's positions so far, one per sample from the reset (its record)."""
+    return np.column_stack([record.robot_col("x"), record.robot_col("y")])
+
+
+def _collision(world: Any, seed: int, path: Sequence[Any], lag: int, dt: float,
                scenario: str = "") -> Collision:  # fmt: skip
     flags = world.collisions[0]
     touched = [k for k in ("person", "wall", "robot") if flags[KINDS.index(k)]]

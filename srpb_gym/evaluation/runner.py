@@ -77,13 +77,15 @@ def run_episode(
     *,
     options: Mapping[str, Any] | None = None,
     on_act: Callable[[float], None] | None = None,
+    on_step: Callable[[dict[str, Any]], None] | None = None,
 ) -> dict[str, Any]:
     """Drive one episode of ``env`` (``env.reset(seed=seed, options=options)``, e.g.
     ``options={"people": False}`` for the empty variant) with ``planner``.
 
     The planner's ``act`` is timed with :func:`time.perf_counter` and its duration [s]
     passed to ``set_planning_time`` before each step and to ``on_act`` (when given).
-    ``on_frame`` receives ``env.render()`` after the reset and every step. Returns the last
+    ``on_frame`` receives ``env.render()`` after the reset and every step, ``on_step`` the
+    info of every step. Returns the last
     ``info``, ``collision`` (any step), ``timeout`` (truncated, not terminated), ``steps``
     and ``reset_time``, the duration of ``planner.reset`` [s].
     """
@@ -106,6 +108,8 @@ def run_episode(
         obs, _, terminated, truncated, info = env.step(action)
         collided |= bool(info["collision"])
         steps += 1
+        if on_step is not None:
+            on_step(info)
         if on_frame is not None:
             on_frame(env.render())
         if terminated or truncated:
