@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
+from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -119,9 +120,7 @@ def report(summary: Summary, fast: float, stopped: float) -> list[str]:
         person = "" if np.isnan(c.person_speed) else f", person {c.person_speed:.2f} m/s"
         lines.append(f"  seed {c.seed}{where}: {c.time:.1f} s, {c.kind}, robot "
                      f"{c.robot_speed:.2f} m/s{person}")  # fmt: skip
-    kinds: dict[str, int] = {}
-    for c in summary.collisions:
-        kinds[c.kind] = kinds.get(c.kind, 0) + 1
+    kinds = Counter(c.kind for c in summary.collisions)
     people = [c.robot_speed for c in summary.collisions if "person" in c.kind.split("+")]
     lines.append("  by kind: " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items()))
                  if summary.collisions else "  no collisions")  # fmt: skip

@@ -119,11 +119,10 @@ GENERALIST_TEACHERS = (
 #: specialist learns with 1e-4 (3e-4 declined after its peak), the srpb specialist
 #: from a clone of social-dwa with 1e-4 and smaller PPO updates (:data:`SMALL_STEPS`),
 #: twice the preset's psi and five times its fsi weight (collision -60 keeps the bound)
-#: and the O-spaces
-#: in its lidar (:data:`CROWD_GROUPS`; from random weights the srpb preset learns to
-#: wait; the srpb fine-tune of the task model, shipped before, crossed the standing
-#: pairs); the crossing specialist starts
-#: from the clone of dwa and learns with 5e-5 (with 3e-4 it stalled beside the goal: 62 %
+#: and the O-spaces in its lidar (:data:`CROWD_GROUPS`; from random weights the srpb
+#: preset learns to wait; the srpb fine-tune of the task model, shipped before, crossed
+#: the standing pairs); the crossing specialist starts from the clone of dwa and learns
+#: with 5e-5 (with 3e-4 it stalled beside the goal: 62 %
 #: against 99 % on the validation seeds); the doorway specialist from the clone of dwa
 #: with 1e-4 (68 % on the validation seeds after 30 minutes; with 5e-5 its evaluations
 #: read 50-70 % after 650,000 steps, with 1e-4 70-85 %); the generalist starts from the
