@@ -8,7 +8,8 @@ Usage::
                   [--planner-param NAME.FIELD=VALUE ...] [--policy PATH ...]
                   [--policy-algo ALGO] [--vecnormalize FILE|none] [--episodes N] [--seed S]
                   [--out DIR] [--resume] [--workers N] [--warmup STEPS] [--video [K]]
-                  [--robots N] [--semantics S] [--preset P] [--env-kwargs KEY=VALUE ...]
+                  [--video-stride K] [--robots N] [--semantics S] [--preset P]
+                  [--env-kwargs KEY=VALUE ...]
     srpb-gym compare DIR [DIR ...] [--out DIR] [--separate]
     srpb-gym train --env ID [--reward PRESET] [--seed S] [--steps N]
                    [--hyperparams KEY=VALUE ...] [--env-kwargs KEY=VALUE ...] [--config FILE]
@@ -312,6 +313,10 @@ def add_eval_command(subparsers: Any) -> None:
                    )  # fmt: skip
     p.add_argument("--video", type=int, nargs="?", const=1, default=0, metavar="K",
                    help="film the first K episodes of each pair (default K: 1)")  # fmt: skip
+    p.add_argument("--video-stride", type=int, default=1, metavar="K",
+                   help="film every K-th control step, played at the render rate / K, so "
+                        "in real time (default: 1; the last step is always filmed)",
+                   )  # fmt: skip
     p.add_argument("--robots", type=int, default=1, metavar="N",
                    help="robots per episode (default: 1). N > 1 runs the multi-robot "
                         "(PettingZoo) environment: a planner instance per robot, a --policy "
@@ -353,6 +358,7 @@ def run_eval(args: argparse.Namespace) -> int:
         planner_settings=planner_settings(args.planner_config, args.planner_param),
         argv=getattr(args, "argv", ()), warmup=args.warmup, resume=args.resume, log=_stderr,
         robots=args.robots, env_kwargs=parse_overrides(args.env_kwargs, "--env-kwargs"),
+        video_stride=args.video_stride,
     )  # fmt: skip
     try:
         outcome = run_evaluation(config, log=_stderr)

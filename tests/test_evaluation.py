@@ -310,3 +310,67 @@ def test_video_of_the_first_episode(tmp_path):
     assert len(videos) == 1 and videos[0].startswith(f"{ENV}_go-to-goal_seed0.")
     head = (out / "videos" / videos[0]).read_bytes()[:12]
     assert head.startswith(b"GIF89a") or head[4:8] == b"ftyp"
+
+
+def _gif_frames(path: Path) -> tuple[int, list[int]]:
+    from PIL import Image
+
+    with Image.open(path) as image:
+        durations = []
+        for i in range(image.n_frames):
+            image.seek(i)
+            durations.append(image.info["duration"])
+        return image.n_frames, durations
+
+
+@pytest.mark.parametrize(("added", "stride", "kept"), [
+    (7, 1, [0, 1, 2, 3, 4, 5, 6]), (7, 3, [0, 3, 6]), (8, 3, [0, 3, 6, 7]), (1, 4, [0]),
+    (5, 2, [0, 2, 4]), (6, 2, [0, 2, 4, 5]),
+])  # fmt: skip
+def test_video_stride_keeps_every_kth_frame_and_the_last(tmp_path, monkeypatch, added,
+                                                          stride, kept):  # fmt: skip
+    pytest.importorskip("PIL")
+    from srpb_gym.evaluation import figures
+
+    monkeypatch.setattr(figures, "video_format", lambda: "gif")
+    writer = figures.VideoWriter(str(tmp_path / "clip"), fps=10, stride=stride)
+    legend = np.repeat(np.arange(0, 36 * added, 36, dtype=np.uint8), 3).reshape(1, added, 3)
+    for i in range(added):  # frame i: grey level 36 * i under a strip of every level used
+        writer.add(np.concatenate([legend, np.full((1, added, 3), 36 * i, np.uint8)]))
+    writer.add(None)  # skipped, not counted
+    path = writer.close()
+    assert writer.frames == len(kept) and path.endswith(".gif")
+    n, durations = _gif_frames(Path(path))
+    assert n == len(kept) and set(durations) == {100 * stride}
+    from PIL import Image
+
+    with Image.open(path) as image:
+        levels = []
+        for i in range(n):
+            image.seek(i)
+            levels.append(int(np.asarray(image.convert("RGB"))[1, 0, 0]))
+    assert [round(level / 36) for level in levels] == kept  # the palette is approximate
+
+
+def test_video_stride_is_checked():
+    from srpb_gym.evaluation.figures import VideoWriter
+
+    with pytest.raises(ValueError, match="stride must be at least 1, got 0"):
+        VideoWriter("unused", stride=0)
+
+
+def test_video_stride_end_to_end(tmp_path, capsys):
+    pytest.importorskip("pygame")
+    clips = {}
+    for stride in (1, 4):
+        out = tmp_path / f"stride{stride}"
+        assert _eval(out, "--episodes", "1", "--video", "--video-stride", str(stride)) == 0
+        (video,) = os.listdir(out / "videos")
+        assert json.loads((out / "config.json").read_text())["video_stride"] == stride
+        clips[stride] = out / "videos" / video
+    if clips[1].suffix == ".gif":  # Pillow merges equal frames, adding their durations
+        steps = sum(_gif_frames(clips[1])[1]) // 100 - 1  # the reset's frame, one per step
+        written = steps // 4 + 1 + (steps % 4 != 0)
+        assert steps > 8 and sum(_gif_frames(clips[4])[1]) == 400 * written
+    assert _eval(tmp_path / "bad", "--video", "--video-stride", "0") == 2
+    assert "--video-stride: must be at least 1, got 0" in capsys.readouterr().err

@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import itertools
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -225,7 +226,7 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     (run / "best").mkdir(parents=True)
     seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
+    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
         seen.append((model, episodes, seed))
         success, psi = best if model.parent.name == "best" else final
         return {env: {"success": success, "m_psi": psi} for env in env_ids}
@@ -276,7 +277,7 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
         (folder / "vecnormalize.pkl").write_bytes(b"the same statistics")
     seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
+    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
         seen.append(model)
         return {env: {"success": 0.9, "m_psi": 10.0} for env in env_ids}
 
@@ -321,7 +322,10 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     from srpb_gym.observation import ObservationConfig
     from training import ship
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None):
+    workers_seen = []
+
+    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
+        workers_seen.append(workers)
         good = model.parent.name == "run"  # the final model is the better one here
         return {env: {"success": 1.0 if good else 0.5, "collision": 0.0, "timeout": 0.0,
                       "m_psi": 10.0, "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0}
@@ -333,7 +337,9 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(ship, "stamp_observation", lambda *args: stamped.append(args))
     _fake_run(tmp_path / "run", best=True, interrupted=True,
               kwargs="{observation: {lidar_encoding: log}}")  # fmt: skip
-    card = ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, False, validate=50)
+    card = ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, False, validate=50,
+                     workers=2)  # fmt: skip
+    assert workers_seen == [2, 2, 2]  # validation of best/ and of the final model, the test
     shipped = tmp_path / "models" / "ppo-corridor-srpb"
     # the chosen model is given the observation settings of the run's env kwargs
     assert stamped == [(tmp_path / "run" / "model.zip", ObservationConfig(lidar_encoding="log"))]
@@ -367,6 +373,19 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
         "| reward weights | corridor: `progress` 1, `psi` -2 |" in (shipped / "card.md").read_text()
     )
     assert "does not record" not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--final", "--validate", "100"], "--final and --validate exclude each other"),
+    (["--workers", "0"], "--workers must be at least 1, got 0"),
+])  # fmt: skip
+def test_ship_refuses_bad_options(monkeypatch, capsys, argv, message):
+    from training import ship
+
+    monkeypatch.setattr(sys, "argv", ["ship", "runs/train/none", "--name", "x", *argv])
+    with pytest.raises(SystemExit) as exc:
+        ship.main()
+    assert exc.value.code == 2 and message in capsys.readouterr().err
 
 
 def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):

@@ -12,7 +12,8 @@ environments made with the run's env kwargs but those of training only, see
 ``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
 training), ``card.json`` and ``card.md`` (environment id and version, reward preset and
 the weights it paid in each scenario, steps, wall time, machine, seed, command,
-hyperparameters and the test results).
+hyperparameters and the test results). ``--workers N`` spreads the evaluations over N
+processes, as ``srpb-gym eval --workers`` (the same figures but for the computation times).
 """
 
 from __future__ import annotations
@@ -46,11 +47,12 @@ VALIDATION_SEED = 3_000_000
 
 
 def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path,
-             env_kwargs: dict[str, Any] | None = None) -> dict:  # fmt: skip
+             env_kwargs: dict[str, Any] | None = None, workers: int = 1) -> dict:  # fmt: skip
     """Test figures by env id of ``model`` (its vecnormalize.pkl beside it), the
-    environments made with ``env_kwargs``."""
+    environments made with ``env_kwargs``, the episodes spread over ``workers`` processes
+    (the same figures but for the computation times ``m_cef`` and ``m_cre``)."""
     config = resolve_config(env_ids, policies=[str(model)], episodes=episodes, seed=seed,
-                            out=str(out), warmup=0, workers=1, log=None,
+                            out=str(out), warmup=0, workers=workers, log=None,
                             env_kwargs=env_kwargs)  # fmt: skip
     outcome = run_evaluation(config, log=lambda line: None)
     return summarize_results(outcome.results)
@@ -256,8 +258,8 @@ def same_model(a: Path, b: Path) -> bool:
     return not stats_a.is_file() or stats_a.read_bytes() == stats_b.read_bytes()
 
 
-def choose(run: Path, env_ids: list[str], episodes: int,
-           env_kwargs: dict[str, Any] | None = None) -> tuple[Path, dict[str, Any]]:  # fmt: skip
+def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, Any] | None = None,
+           workers: int = 1) -> tuple[Path, dict[str, Any]]:  # fmt: skip
     """``best/`` or the final model of ``run``, whichever scores higher
     (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then mean median m_psi)
     on ``episodes`` seeds from :data:`VALIDATION_SEED`; ``best/`` on a tie (and without a
@@ -271,7 +273,7 @@ def choose(run: Path, env_ids: list[str], episodes: int,
             figures[label] = figures["best"]
             continue
         figures[label] = evaluate(folder / "model.zip", env_ids, episodes, VALIDATION_SEED,
-                                  work, env_kwargs)  # fmt: skip
+                                  work, env_kwargs, workers)  # fmt: skip
     better = eval_score(figures["final"].values()) > eval_score(figures["best"].values())
     return (run if better else run / "best"), {
         "episodes": episodes,
@@ -282,7 +284,7 @@ def choose(run: Path, env_ids: list[str], episodes: int,
 
 
 def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
-         validate: int = 0) -> dict[str, Any]:  # fmt: skip
+         validate: int = 0, workers: int = 1) -> dict[str, Any]:  # fmt: skip
     if final and validate:
         raise ValueError("final and validate exclude each other")
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
@@ -294,12 +296,13 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
               + (" without validation" if validate else ""), file=sys.stderr)  # fmt: skip
     validation = None
     if validate and has_best:
-        checkpoint, validation = choose(run, env_ids, validate, env_kwargs)
+        checkpoint, validation = choose(run, env_ids, validate, env_kwargs, workers)
     else:
         checkpoint = run if final or not has_best else run / "best"
     work = run / "test"
     shutil.rmtree(work, ignore_errors=True)
-    results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work, env_kwargs)
+    results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work, env_kwargs,
+                       workers)  # fmt: skip
     # a model trained before models carried their observation settings gets them here (a
     # record that disagrees with the run's settings stops the packaging before it starts)
     observation = ObservationConfig.from_spec((env_kwargs or {}).get("observation"))
@@ -343,10 +346,16 @@ def main() -> int:
     parser.add_argument("--validate", type=int, default=0, metavar="N",
                         help="test best/ and the final model on N validation seeds (from "
                         f"{VALIDATION_SEED}) and ship the better")  # fmt: skip
+    parser.add_argument("--workers", type=int, default=1, metavar="N",
+                        help="evaluation processes (default: 1; the same figures but for "
+                        "the computation times m_cef and m_cre)")  # fmt: skip
     args = parser.parse_args()
     if args.final and args.validate:
         parser.error("--final and --validate exclude each other")
-    card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate)
+    if args.workers < 1:
+        parser.error(f"--workers must be at least 1, got {args.workers}")
+    card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate,
+                args.workers)  # fmt: skip
     for env_id, f in card["test"]["results"].items():
         print(f"{args.name} on {env_id}: success {100 * f['success']:.0f}%, "
               f"collision {100 * f['collision']:.0f}%, m_psi {f['m_psi']:.3g}, "

@@ -221,22 +221,48 @@ def video_format() -> str | None:
 class VideoWriter:
     """Frames (H, W, 3 uint8) added one at a time, written to ``stem`` + ``.mp4`` (streamed
     through imageio's ffmpeg plugin) or ``.gif`` (each frame kept as 8-bit palette indices,
-    the palette fitted to the first frame, which shows every colour in its legend)."""
+    the palette fitted to the first frame, which shows every colour in its legend).
 
-    def __init__(self, stem: str, fps: int = 10) -> None:
+    ``fps``: the rate the frames are added at (the environment's ``render_fps``).
+    ``stride``: keep the first frame and every ``stride``-th after it, and always the last
+    one added (so the video ends where the episode ends), played at ``fps / stride``: the
+    same real time in ``1 / stride`` of the frames."""
+
+    def __init__(self, stem: str, fps: float = 10, stride: int = 1) -> None:
+        if stride < 1:
+            raise ValueError(f"stride must be at least 1, got {stride}")
         self.format = video_format() or "gif"
         self.path = f"{stem}.{self.format}"
-        self.fps = fps
+        self.stride = stride
+        self.fps = fps / stride
         self._writer: Any = None
         self._palette: Any = None
         self._images: list[Any] = []
+        self._added = 0
+        self._frames = 0
+        self._held: np.ndarray | None = None
         os.makedirs(os.path.dirname(self.path) or ".", exist_ok=True)
 
     def add(self, frame: np.ndarray | None) -> None:
-        """Append one frame (``None`` is skipped)."""
+        """Add one frame (``None`` is skipped); one between strides is held back until the
+        next is added, and written by :meth:`close` if it was the last."""
         if frame is None:
             return
         frame = np.asarray(frame, dtype=np.uint8)
+        self._added += 1
+        if (self._added - 1) % self.stride:
+            self._held = frame
+            return
+        self._held = None
+        self._write(frame)
+
+    @property
+    def frames(self) -> int:
+        """Frames written so far (a held-back frame not counted)."""
+        return self._frames
+
+    def _write(self, frame: np.ndarray) -> None:
+        self._frames += 1
         if self.format == "mp4":
             if self._writer is None:
                 import imageio.v2 as imageio
@@ -253,7 +279,10 @@ class VideoWriter:
         self._images.append(image.quantize(palette=self._palette, dither=Image.Dither.NONE))
 
     def close(self) -> str:
-        """Finish the file; returns its path."""
+        """Finish the file (writing a held-back last frame); returns its path."""
+        if self._held is not None:
+            self._write(self._held)
+            self._held = None
         if self._writer is not None:
             self._writer.close()
         elif self._images:

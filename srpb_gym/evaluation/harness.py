@@ -194,6 +194,7 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
         "workers": config.workers,
         "warmup": {"steps": config.warmup, "seed": config.warmup_seed},
         "video": config.video,
+        "video_stride": config.video_stride,
         "robots": config.robots,
         "env_kwargs": dict(config.make_kwargs),
         "out": config.out,

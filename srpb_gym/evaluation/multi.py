@@ -117,7 +117,7 @@ def run_multi_task(config: EvalConfig, pair: tuple[Any, dict[str, Planner]], tas
         from srpb_gym.evaluation.figures import VideoWriter
 
         stem = os.path.join(config.out, "videos", f"{task.env}_{name}_seed{task.seed}")
-        video = VideoWriter(stem, int(par.metadata.get("render_fps", 10)))
+        video = VideoWriter(stem, par.metadata.get("render_fps", 10), config.video_stride)
     finished = run_multi_episode(par, planners, task.seed, None if video is None else video.add)
     clip = "" if video is None else os.path.relpath(video.close(), config.out)
     results = []

@@ -22,7 +22,9 @@ from srpb_gym.evaluation.runner import EpisodeResult, Task, tasks_of
 from srpb_gym.evaluation.spec import EvalConfig, jsonable
 
 RUN_FILES: tuple[str, ...] = ("config.json", "command.txt", "versions.json")
-RESUME_FREE: frozenset[str] = frozenset({"created", "out", "workers", "video", "notes"})
+RESUME_FREE: frozenset[str] = frozenset(
+    {"created", "out", "workers", "video", "video_stride", "notes"}
+)
 """Top-level keys of ``config.json`` that may differ when resuming: none changes a figure."""
 RESUME_VERSIONS: tuple[str, ...] = (
     "python", "srpb-gym", "numpy", "scipy", "numba", "gymnasium", "pymunk",

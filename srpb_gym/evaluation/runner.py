@@ -182,7 +182,8 @@ class Workspace:
             from srpb_gym.evaluation.figures import VideoWriter
 
             stem = os.path.join(self.config.out, "videos", f"{task.env}_{name}_seed{task.seed}")
-            video = VideoWriter(stem, int(env.unwrapped.metadata.get("render_fps", 10)))
+            fps = env.unwrapped.metadata.get("render_fps", 10)
+            video = VideoWriter(stem, fps, self.config.video_stride)
         out = run_episode(env, planner, task.seed, None if video is None else video.add)
         info, base = out["info"], env.unwrapped
         record = os.path.join(base.record_dir, f"{base.episode_name()}.npz")

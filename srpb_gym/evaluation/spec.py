@@ -84,7 +84,8 @@ class PlannerSpec:
 @dataclass(frozen=True)
 class EvalConfig:
     """A resolved evaluation: every (env, planner) pair runs ``episodes`` episodes with
-    seeds ``seed``, ``seed + 1``, ...; ``video`` episodes of each pair are filmed.
+    seeds ``seed``, ``seed + 1``, ...; ``video`` episodes of each pair are filmed, every
+    ``video_stride``-th control step of each (:class:`~.figures.VideoWriter`).
 
     ``envs`` are labels: registered ids, or scenario names for the scenario files of
     ``scenario_files`` ((label, file path) pairs). ``warmup``: untimed control steps of
@@ -111,6 +112,7 @@ class EvalConfig:
     notes: tuple[str, ...] = ()
     robots: int = 1
     make_kwargs: Mapping[str, Any] = field(default_factory=dict, hash=False)
+    video_stride: int = 1
 
     @property
     def seeds(self) -> list[int]:
@@ -214,6 +216,7 @@ def resolve_config(
     log: Callable[[str], None] | None = stderr_log,
     robots: int = 1,
     env_kwargs: Mapping[str, Any] | None = None,
+    video_stride: int = 1,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
     planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
@@ -232,7 +235,8 @@ def resolve_config(
     keyword arguments of every environment (e.g. ``{"crowd": {"robot_reaction": 0.0}}``, or
     the ``observation`` a policy was trained with), checked by making each environment
     (errors: key ``--env-kwargs``); the keys the evaluation sets itself
-    (:data:`RESERVED_ENV_KWARGS`) are refused.
+    (:data:`RESERVED_ENV_KWARGS`) are refused. ``video_stride``: film every this many
+    control steps (at least 1).
     """
     from srpb_gym.evaluation.outdir import check_out_dir
     from srpb_gym.evaluation.policies import policy_specs
@@ -245,6 +249,8 @@ def resolve_config(
             log(line)
 
     _check_counts(episodes, workers, video, warmup)
+    if video_stride < 1:
+        raise InputError(f"must be at least 1, got {video_stride}", key="--video-stride")
     if seed < 0:
         raise InputError(f"must be at least 0, got {seed}", key="--seed")
     if semantics not in SEMANTICS:
@@ -270,7 +276,7 @@ def resolve_config(
     out = check_out_dir(out or default_out(), resume=resume)
     return EvalConfig(tuple(env_ids), tuple(specs), episodes, seed, out, workers, video,
                       semantics, preset, tuple(argv), tuple(files), warmup, resume,
-                      tuple(notes), robots, probe.make_kwargs)  # fmt: skip
+                      tuple(notes), robots, probe.make_kwargs, video_stride)  # fmt: skip
 
 
 #: ``gym.make`` keywords an evaluation sets itself, with the option that sets each

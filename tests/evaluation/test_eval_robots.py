@@ -208,3 +208,18 @@ def test_shared_policy_with_two_robots(tmp_path):
         record = load_record(out / "episodes" / ENV / "tiny_ppo" / f"corridor_seed0_robot"
                              f"{row['robot']}.npz")  # fmt: skip
         assert _same(float(row["m_psi"]), evaluate(record)["m_psi"])
+
+
+def test_a_filmed_episode_shows_every_robot_in_one_video(tmp_path):
+    pytest.importorskip("pygame")
+    out = tmp_path / "video"
+    assert _eval(out, "--robots", "2", "--video", "--video-stride", "3",
+                 planner="go-to-goal") == 0  # fmt: skip
+    (video,) = (out / "videos").iterdir()
+    assert video.name.startswith(f"{ENV}_go-to-goal_seed0.")
+    assert len(_rows(out)) == 4  # 2 episodes x 2 robots, the first of them filmed
+    if video.suffix == ".gif":
+        from PIL import Image
+
+        with Image.open(video) as image:
+            assert image.info["duration"] == 300  # 10 fps rendered, every third step shown
