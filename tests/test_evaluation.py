@@ -312,15 +312,17 @@ def test_video_of_the_first_episode(tmp_path):
     assert head.startswith(b"GIF89a") or head[4:8] == b"ftyp"
 
 
-def _gif_frames(path: Path) -> tuple[int, list[int]]:
+def _gif_frames(path: Path) -> tuple[list[int], list[np.ndarray]]:
+    """The duration [ms] and the RGB pixels of each frame of a GIF."""
     from PIL import Image
 
+    durations, pixels = [], []
     with Image.open(path) as image:
-        durations = []
         for i in range(image.n_frames):
             image.seek(i)
             durations.append(image.info["duration"])
-        return image.n_frames, durations
+            pixels.append(np.asarray(image.convert("RGB")))
+    return durations, pixels
 
 
 @pytest.mark.parametrize(("added", "stride", "kept"), [
@@ -340,15 +342,9 @@ def test_video_stride_keeps_every_kth_frame_and_the_last(tmp_path, monkeypatch, 
     writer.add(None)  # skipped, not counted
     path = writer.close()
     assert writer.frames == len(kept) and path.endswith(".gif")
-    n, durations = _gif_frames(Path(path))
-    assert n == len(kept) and set(durations) == {100 * stride}
-    from PIL import Image
-
-    with Image.open(path) as image:
-        levels = []
-        for i in range(n):
-            image.seek(i)
-            levels.append(int(np.asarray(image.convert("RGB"))[1, 0, 0]))
+    durations, pixels = _gif_frames(Path(path))
+    assert len(durations) == len(kept) and set(durations) == {100 * stride}
+    levels = [int(frame[1, 0, 0]) for frame in pixels]
     assert [round(level / 36) for level in levels] == kept  # the palette is approximate
 
 
@@ -369,8 +365,8 @@ def test_video_stride_end_to_end(tmp_path, capsys):
         assert json.loads((out / "config.json").read_text())["video_stride"] == stride
         clips[stride] = out / "videos" / video
     if clips[1].suffix == ".gif":  # Pillow merges equal frames, adding their durations
-        steps = sum(_gif_frames(clips[1])[1]) // 100 - 1  # the reset's frame, one per step
+        steps = sum(_gif_frames(clips[1])[0]) // 100 - 1  # the reset's frame, one per step
         written = steps // 4 + 1 + (steps % 4 != 0)
-        assert steps > 8 and sum(_gif_frames(clips[4])[1]) == 400 * written
+        assert steps > 8 and sum(_gif_frames(clips[4])[0]) == 400 * written
     assert _eval(tmp_path / "bad", "--video", "--video-stride", "0") == 2
     assert "--video-stride: must be at least 1, got 0" in capsys.readouterr().err

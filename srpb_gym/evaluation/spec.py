@@ -248,9 +248,7 @@ def resolve_config(
         if log is not None:
             log(line)
 
-    _check_counts(episodes, workers, video, warmup)
-    if video_stride < 1:
-        raise InputError(f"must be at least 1, got {video_stride}", key="--video-stride")
+    _check_counts(episodes, workers, video, warmup, video_stride)
     if seed < 0:
         raise InputError(f"must be at least 0, got {seed}", key="--seed")
     if semantics not in SEMANTICS:
@@ -365,7 +363,8 @@ def _check_robots(robots: int, env_ids: Sequence[str], files: Mapping[str, str])
             raise InputError(exc.message, files.get(env), key="--robots") from None
 
 
-def _check_counts(episodes: int, workers: int, video: int, warmup: int) -> None:
+def _check_counts(episodes: int, workers: int, video: int, warmup: int,
+                  video_stride: int = 1) -> None:  # fmt: skip
     if episodes < 1:
         raise InputError(f"must be at least 1, got {episodes}", key="--episodes")
     if workers < 1:
@@ -374,6 +373,8 @@ def _check_counts(episodes: int, workers: int, video: int, warmup: int) -> None:
         raise InputError(f"must be at least 0, got {video}", key="--video")
     if warmup < 0:
         raise InputError(f"must be at least 0, got {warmup}", key="--warmup")
+    if video_stride < 1:
+        raise InputError(f"must be at least 1, got {video_stride}", key="--video-stride")
 
 
 def _cap_workers(workers: int, planned: int, note: Callable[[str], None]) -> int:
