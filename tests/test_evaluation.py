@@ -325,22 +325,35 @@ def _gif_frames(path: Path) -> tuple[list[int], list[np.ndarray]]:
     return durations, pixels
 
 
+@pytest.mark.parametrize("lazy", [False, True])
 @pytest.mark.parametrize(("added", "stride", "kept"), [
     (7, 1, [0, 1, 2, 3, 4, 5, 6]), (7, 3, [0, 3, 6]), (8, 3, [0, 3, 6, 7]), (1, 4, [0]),
     (5, 2, [0, 2, 4]), (6, 2, [0, 2, 4, 5]),
 ])  # fmt: skip
 def test_video_stride_keeps_every_kth_frame_and_the_last(tmp_path, monkeypatch, added,
-                                                          stride, kept):  # fmt: skip
+                                                          stride, kept, lazy):  # fmt: skip
+    """``add`` takes drawn frames; ``film`` takes the drawing and draws only the frames it
+    keeps (the last one at ``close``)."""
     pytest.importorskip("PIL")
     from srpb_gym.evaluation import figures
 
     monkeypatch.setattr(figures, "video_format", lambda: "gif")
     writer = figures.VideoWriter(str(tmp_path / "clip"), fps=10, stride=stride)
     legend = np.repeat(np.arange(0, 36 * added, 36, dtype=np.uint8), 3).reshape(1, added, 3)
-    for i in range(added):  # frame i: grey level 36 * i under a strip of every level used
-        writer.add(np.concatenate([legend, np.full((1, added, 3), 36 * i, np.uint8)]))
+    drawn: list[int] = []
+
+    def draw(i: int) -> np.ndarray:  # frame i: grey level 36 * i under a strip of every level
+        drawn.append(i)
+        return np.concatenate([legend, np.full((1, added, 3), 36 * i, np.uint8)])
+
+    for i in range(added):
+        if lazy:
+            writer.film(lambda i=i: draw(i))
+        else:
+            writer.add(draw(i))
     writer.add(None)  # skipped, not counted
     path = writer.close()
+    assert drawn == (kept if lazy else list(range(added)))
     assert writer.frames == len(kept) and path.endswith(".gif")
     durations, pixels = _gif_frames(Path(path))
     assert len(durations) == len(kept) and set(durations) == {100 * stride}

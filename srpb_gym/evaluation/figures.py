@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from importlib.util import find_spec
 from typing import Any
 
@@ -240,28 +240,36 @@ class VideoWriter:
         self._images: list[Any] = []
         self._added = 0
         self._frames = 0
-        self._held: np.ndarray | None = None
+        self._held: Callable[[], np.ndarray | None] | None = None
         os.makedirs(os.path.dirname(self.path) or ".", exist_ok=True)
 
     def add(self, frame: np.ndarray | None) -> None:
         """Add one frame (``None`` is skipped); one between strides is held back until the
         next is added, and written by :meth:`close` if it was the last."""
-        if frame is None:
-            return
-        frame = np.asarray(frame, dtype=np.uint8)
+        if frame is not None:
+            self.film(lambda: frame)
+
+    def film(self, render: Callable[[], np.ndarray | None]) -> None:
+        """Count one frame and call ``render`` (``env.render``) only if it is kept: a frame
+        between strides is not drawn, and ``render`` is kept instead, so that :meth:`close`
+        draws the last frame if it fell between strides (``close`` then has to come before
+        the environment moves on). A ``None`` from ``render`` writes nothing."""
         self._added += 1
         if (self._added - 1) % self.stride:
-            self._held = frame
+            self._held = render
             return
         self._held = None
-        self._write(frame)
+        self._write(render())
 
     @property
     def frames(self) -> int:
         """Frames written so far (a held-back frame not counted)."""
         return self._frames
 
-    def _write(self, frame: np.ndarray) -> None:
+    def _write(self, frame: np.ndarray | None) -> None:
+        if frame is None:
+            return
+        frame = np.asarray(frame, dtype=np.uint8)
         self._frames += 1
         if self.format == "mp4":
             if self._writer is None:
@@ -281,7 +289,7 @@ class VideoWriter:
     def close(self) -> str:
         """Finish the file (writing a held-back last frame); returns its path."""
         if self._held is not None:
-            self._write(self._held)
+            self._write(self._held())
             self._held = None
         if self._writer is not None:
             self._writer.close()

@@ -35,21 +35,22 @@ def run_multi_episode(
     par: Any,
     planners: Mapping[str, Planner],
     seed: int,
-    on_frame: Callable[[Any], None] | None = None,
+    on_frame: Callable[[Callable[[], Any]], None] | None = None,
 ) -> dict[str, dict[str, Any]]:
     """Drive one episode of the parallel environment ``par`` (``par.reset(seed=seed)``),
     each agent with its planner of ``planners``.
 
     Each ``act`` is timed with :func:`time.perf_counter` and the times are passed to
-    ``set_planning_time`` before each step. ``on_frame`` receives ``par.render()`` after
-    the reset and every step. Returns, per agent, its last ``info``, ``collision`` (any
-    of its steps), ``timeout`` (truncated, not terminated) and ``steps``.
+    ``set_planning_time`` before each step. ``on_frame`` receives ``par.render`` after
+    the reset and every step, to call for the frames it wants. Returns, per agent, its
+    last ``info``, ``collision`` (any of its steps), ``timeout`` (truncated, not
+    terminated) and ``steps``.
     """
     observations, _ = par.reset(seed=seed)
     for agent in par.agents:
         planners[agent].reset(par.knowledge(agent))
     if on_frame is not None:
-        on_frame(par.render())
+        on_frame(par.render)
     collided = dict.fromkeys(par.agents, False)
     steps = dict.fromkeys(par.agents, 0)
     finished: dict[str, dict[str, Any]] = {}
@@ -70,7 +71,7 @@ def run_multi_episode(
                                    "timeout": bool(truncs[agent] and not terms[agent]),
                                    "steps": steps[agent]}  # fmt: skip
         if on_frame is not None:
-            on_frame(par.render())
+            on_frame(par.render)
     return finished
 
 
@@ -118,7 +119,7 @@ def run_multi_task(config: EvalConfig, pair: tuple[Any, dict[str, Planner]], tas
 
         stem = os.path.join(config.out, "videos", f"{task.env}_{name}_seed{task.seed}")
         video = VideoWriter(stem, par.metadata.get("render_fps", 10), config.video_stride)
-    finished = run_multi_episode(par, planners, task.seed, None if video is None else video.add)
+    finished = run_multi_episode(par, planners, task.seed, None if video is None else video.film)
     clip = "" if video is None else os.path.relpath(video.close(), config.out)
     results = []
     for robot, agent in enumerate(par.possible_agents):

@@ -73,7 +73,7 @@ def run_episode(
     env: Any,
     planner: Planner,
     seed: int,
-    on_frame: Callable[[Any], None] | None = None,
+    on_frame: Callable[[Callable[[], Any]], None] | None = None,
     *,
     options: Mapping[str, Any] | None = None,
     on_act: Callable[[float], None] | None = None,
@@ -84,8 +84,9 @@ def run_episode(
 
     The planner's ``act`` is timed with :func:`time.perf_counter` and its duration [s]
     passed to ``set_planning_time`` before each step and to ``on_act`` (when given).
-    ``on_frame`` receives ``env.render()`` after the reset and every step, ``on_step`` the
-    info of every step. Returns the last
+    ``on_frame`` receives ``env.render`` after the reset and every step, to call for the
+    frames it wants (:meth:`~.figures.VideoWriter.film` draws only those it keeps),
+    ``on_step`` the info of every step. Returns the last
     ``info``, ``collision`` (any step), ``timeout`` (truncated, not terminated), ``steps``
     and ``reset_time``, the duration of ``planner.reset`` [s].
     """
@@ -95,7 +96,7 @@ def run_episode(
     planner.reset(base.knowledge())
     reset_time = time.perf_counter() - started
     if on_frame is not None:
-        on_frame(env.render())
+        on_frame(env.render)
     collided, steps = False, 0
     while True:
         knowledge = base.knowledge()
@@ -111,7 +112,7 @@ def run_episode(
         if on_step is not None:
             on_step(info)
         if on_frame is not None:
-            on_frame(env.render())
+            on_frame(env.render)
         if terminated or truncated:
             break
     return {"info": info, "collision": collided, "timeout": bool(truncated and not terminated),
@@ -184,7 +185,7 @@ class Workspace:
             stem = os.path.join(self.config.out, "videos", f"{task.env}_{name}_seed{task.seed}")
             fps = env.unwrapped.metadata.get("render_fps", 10)
             video = VideoWriter(stem, fps, self.config.video_stride)
-        out = run_episode(env, planner, task.seed, None if video is None else video.add)
+        out = run_episode(env, planner, task.seed, None if video is None else video.film)
         info, base = out["info"], env.unwrapped
         record = os.path.join(base.record_dir, f"{base.episode_name()}.npz")
         result = EpisodeResult(
