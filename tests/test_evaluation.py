@@ -84,7 +84,7 @@ def test_every_artifact_is_written(run):
     command = (run / "command.txt").read_text().split()
     assert command[:2] == ["srpb-gym", "eval"] and "--episodes" in command
     versions = json.loads((run / "versions.json").read_text())
-    for key in ("python", "srpb-gym", "numpy", "scipy", "numba", "gymnasium", "pymunk"):
+    for key in ("python", "srpb-gym", "numpy", "scipy", "numba", "gymnasium", "pymunk", "cpu"):
         assert versions[key]
 
     for png in (f"trajectories_{ENV}_go-to-goal.png", f"bars_{ENV}.png"):
@@ -359,6 +359,23 @@ def test_video_stride_keeps_every_kth_frame_and_the_last(tmp_path, monkeypatch, 
     assert len(durations) == len(kept) and set(durations) == {100 * stride}
     levels = [int(frame[1, 0, 0]) for frame in pixels]
     assert [round(level / 36) for level in levels] == kept  # the palette is approximate
+
+
+def test_the_processor_is_recorded(monkeypatch):
+    """The processor, torch's kernels when torch is loaded and MKL_CBWR when set: a learned
+    policy's figures may depend on them."""
+    import types
+
+    from srpb_gym.evaluation.harness import cpu
+
+    monkeypatch.delenv("MKL_CBWR", raising=False)
+    monkeypatch.delitem(sys.modules, "torch", raising=False)
+    plain = cpu()
+    assert set(plain) == {"cpu"} and plain["cpu"]
+    backends = types.SimpleNamespace(cpu=types.SimpleNamespace(get_cpu_capability=lambda: "AVX2"))
+    monkeypatch.setitem(sys.modules, "torch", types.SimpleNamespace(backends=backends))
+    monkeypatch.setenv("MKL_CBWR", "COMPATIBLE")
+    assert cpu() == {**plain, "torch_cpu_capability": "AVX2", "MKL_CBWR": "COMPATIBLE"}
 
 
 def test_video_stride_is_checked():

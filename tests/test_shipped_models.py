@@ -352,6 +352,9 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     text = (shipped / "card.md").read_text()
     assert "final, chosen over the best periodic evaluation's checkpoint on 50" in text
     assert "stopped by hand" in text
+    # the processor of the test figures
+    processor = card["test"]["machine"]["cpu"]
+    assert processor and f"Measured on {processor}" in text
     # not recorded by the run: those the environment pays now, said so
     assert card["reward_weights"]["corridor"]["psi"] == -5.0
     assert "| reward weights | corridor: `progress` 1, `success` 10, `collision` -110, " in text
@@ -440,6 +443,15 @@ def test_the_card_names_each_scenario_teacher_of_a_distillation():
         "the clone drove 300 episodes, 81,234 steps (80 % success), labelled by `dwa`; "
         "DAgger round 2: the clone drove 300 episodes, 80,000 steps (88 % success), labelled "
         "by `dwa`, action MSE 0.012"
+    )
+
+
+def test_the_card_names_the_processor_of_its_test_figures():
+    from training.ship import _cpu_text
+
+    assert _cpu_text({"cpu": "Xeon"}) == "Xeon"
+    assert _cpu_text({"cpu": "Xeon", "torch_cpu_capability": "AVX512", "MKL_CBWR": "AVX2"}) == (
+        "Xeon, torch kernels AVX512, MKL_CBWR=AVX2"
     )
 
 

@@ -31,7 +31,7 @@ from typing import Any
 
 import yaml
 
-from srpb_gym.evaluation.harness import run_evaluation
+from srpb_gym.evaluation.harness import cpu, run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.observation import ObservationConfig
 from srpb_gym.planners.learned import settings_text, stamp_observation
@@ -94,7 +94,22 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
               "people. Training curves: `evaluations.csv` (periodic evaluations, "
               f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
               "1000000)."]  # fmt: skip
+    if card["test"].get("machine"):
+        lines += ["", f"Measured on {_cpu_text(card['test']['machine'])}; on another "
+                  "processor the figures may differ a little (docs/evaluation.md, "
+                  "reproducibility across machines)."]  # fmt: skip
     return "\n".join(lines) + "\n"
+
+
+def _cpu_text(machine: dict[str, str]) -> str:
+    """The processor of a card's test figures, as :func:`~srpb_gym.evaluation.harness.cpu`
+    recorded it."""
+    words = [machine["cpu"]]
+    if "torch_cpu_capability" in machine:
+        words.append(f"torch kernels {machine['torch_cpu_capability']}")
+    if "MKL_CBWR" in machine:
+        words.append(f"MKL_CBWR={machine['MKL_CBWR']}")
+    return ", ".join(words)
 
 
 def _observation_text(spec: Any) -> str:
@@ -329,7 +344,8 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
                      "time_limit_reached": info.get("time_limit_reached", False),
                      "interrupted": info.get("interrupted", False),
                      "warm_start": info.get("warm_start"), "init": _init(info.get("init"))},
-        "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results},
+        "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results,
+                 "machine": cpu()},
     }  # fmt: skip
     (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
     (target / "card.md").write_text(card_markdown(name, card), encoding="utf-8")

@@ -204,8 +204,31 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
     }
 
 
+def cpu() -> dict[str, str]:
+    """The processor figures are computed on: ``cpu``, its model name (``/proc/cpuinfo``
+    where there is one, else what :mod:`platform` says), ``torch_cpu_capability``, the
+    vector instructions torch's kernels use (when torch is loaded), and ``MKL_CBWR`` when it
+    is set. A learned policy's actions may differ in their last bits between these, and its
+    episodes then drift apart (docs/evaluation.md, reproducibility across machines)."""
+    name = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as f:
+            name = next((line.split(":", 1)[1].strip() for line in f
+                         if line.startswith("model name")), name)  # fmt: skip
+    except OSError:
+        pass
+    out = {"cpu": name}
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        out["torch_cpu_capability"] = str(torch.backends.cpu.get_cpu_capability())
+    if os.environ.get("MKL_CBWR"):
+        out["MKL_CBWR"] = os.environ["MKL_CBWR"]
+    return out
+
+
 def versions() -> dict[str, str]:
-    """Python, the platform and the installed version of each package of :data:`VERSIONED`."""
+    """Python, the platform, the installed version of each package of :data:`VERSIONED`
+    and the processor (:func:`cpu`)."""
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for key, dist in VERSIONED:
         try:
@@ -215,7 +238,7 @@ def versions() -> dict[str, str]:
                 from srpb_gym import __version__
 
                 out[key] = __version__
-    return out
+    return out | cpu()
 
 
 def draw_figures(
