@@ -118,9 +118,10 @@ def test_retraining_commands_follow_each_model_recipe(monkeypatch):
     hyper = crowd[0][crowd[0].index("--hyperparams") + 1 :]
     assert "pretrain_planner=social-dwa" in hyper and "learning_rate=1e-4" in hyper
     assert "n_epochs=5" in hyper and "clip_range=0.1" in hyper  # the smaller updates
+    assert "gamma=0.995" in hyper  # the longer horizon
     kwargs = crowd[0][crowd[0].index("--env-kwargs") + 1 : crowd[0].index("--hyperparams")]
     assert kwargs == ["observation={lidar_encoding: log, lidar_groups: 0.0001}",
-                      "reward_weights={psi: -2.0, fsi: -3.0, collision: -60.0}"]  # fmt: skip
+                      "reward_weights={psi: -2.0, fsi: -3.0, collision: -120.0}"]  # fmt: skip
     assert crowd[1][crowd[1].index("--validate") + 1] == "100"
     # a model fine-tuning the best checkpoint of another model's recipe, run first, with
     # other observation settings
