@@ -363,8 +363,7 @@ def _check_robots(robots: int, env_ids: Sequence[str], files: Mapping[str, str])
             raise InputError(exc.message, files.get(env), key="--robots") from None
 
 
-def _check_counts(episodes: int, workers: int, video: int, warmup: int,
-                  video_stride: int = 1) -> None:  # fmt: skip
+def _check_counts(episodes: int, workers: int, video: int, warmup: int, video_stride: int) -> None:
     if episodes < 1:
         raise InputError(f"must be at least 1, got {episodes}", key="--episodes")
     if workers < 1:
