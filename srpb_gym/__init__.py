@@ -11,11 +11,13 @@ environment (:mod:`srpb_gym.pettingzoo_env`; ``srpb_gym.aec_env(...)`` its AEC v
 
 from __future__ import annotations
 
+from types import ModuleType
 from typing import Any
 
-__version__ = "0.1.0"
-
+from srpb_gym._version import __version__
 from srpb_gym.registration import register_envs
+
+__all__ = ["__version__", "aec_env", "parallel_env"]
 
 register_envs()
 
@@ -24,13 +26,17 @@ def parallel_env(**kwargs: Any) -> Any:
     """The PettingZoo ``ParallelEnv`` of several robots (arguments: the environment's
     arguments of ``gym.make``, plus ``n_robots`` and an optional step limit ``max_steps``;
     see :class:`srpb_gym.pettingzoo_env.SRPBParallelEnv`)."""
-    from srpb_gym.pettingzoo_env import parallel_env as make
-
-    return make(**kwargs)
+    return _pettingzoo().parallel_env(**kwargs)
 
 
 def aec_env(**kwargs: Any) -> Any:
     """The PettingZoo AEC version of :func:`parallel_env` (order enforced)."""
-    from srpb_gym.pettingzoo_env import env as make
+    return _pettingzoo().env(**kwargs)
 
-    return make(**kwargs)
+
+def _pettingzoo() -> ModuleType:
+    # deferred: `import srpb_gym` registers the ids without loading the simulation (about
+    # 4 s of compiled kernels) or PettingZoo
+    from srpb_gym import pettingzoo_env
+
+    return pettingzoo_env

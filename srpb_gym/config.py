@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from srpb_gym.errors import InputError
+from srpb_gym.yaml_io import read_yaml
 
 T = TypeVar("T")
 #: ``module.Class.field`` of the float fields documented as possibly ``inf`` that do not yet
@@ -186,8 +187,6 @@ def _convert(hint: Any, value: Any, dotted: str, file: str | None, infinite: boo
 def parse_overrides(items: Sequence[str], option: str = "--hyperparams") -> dict[str, Any]:
     """``["n_steps=1024", "net_arch=[64, 64]"]`` -> ``{"n_steps": 1024, "net_arch": [64, 64]}``
     (values read as YAML by the safe reader: plain data only)."""
-    from srpb_gym.scenarios.yaml_io import read_yaml
-
     out: dict[str, Any] = {}
     for item in items:
         key, sep, text = item.partition("=")

@@ -9,32 +9,29 @@ episode's time and step limits, the planner's computation time and rendering.
 from __future__ import annotations
 
 import math
+import os
 import time
 import uuid
-from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from srpb_gym.episode_setup import (
-    RESET_OPTIONS,
-    build_simulation,
-    episode_layout,
-    out_of_time,
-    planning_seconds,
-)
+from srpb_gym.episode_setup import RESET_OPTIONS, episode_layout, out_of_time, planning_seconds
 from srpb_gym.errors import InputError
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.observation import ObservationConfig
-from srpb_gym.planners.base import Knowledge
-from srpb_gym.scenarios import load_scenario
+from srpb_gym.render import Renderer
+from srpb_gym.settings import EnvSettings
 from srpb_gym.sim.layout import EpisodeLayout
-from srpb_gym.sim.robot import RobotConfig
-from srpb_gym.task import COLLISION_MODES, RobotTask, build_task
+from srpb_gym.task import COLLISION_MODES
 
-__all__ = ["COLLISION_MODES", "RESET_OPTIONS", "SRPBNavEnv", "StepLimitSync"]
+__all__ = [
+    "COLLISION_MODES", "RESET_OPTIONS", "EnvSettings", "SRPBNavEnv", "StepLimitSync",
+    "check_render_mode", "settings_of",
+]  # fmt: skip
 
 
 class SRPBNavEnv(gym.Env):
@@ -151,7 +148,10 @@ class SRPBNavEnv(gym.Env):
     per-walker ``robot_reaction``, F-formation members' ``formation_robot_reaction``);
     people still collide with the robot physically. Every argument is plain data;
     ``reset(options=...)`` takes ``people`` (False: an empty variant), ``start`` and
-    ``goal`` (x, y, yaw).
+    ``goal`` (x, y, yaw). The arguments after ``render_mode`` are the environment's
+    settings (:class:`~srpb_gym.settings.EnvSettings`, checked once when the environment
+    is made; an unknown one is a ``TypeError``); ``settings=EnvSettings.from_kwargs({...})``
+    passes them as one object instead (the same settings for several environments).
 
     The planner's computation time (m_cef, m_cre) is the wall time between the previous
     ``reset``/``step`` returning and this ``step`` starting, unless a harness calls
@@ -179,30 +179,16 @@ class SRPBNavEnv(gym.Env):
 
     def __init__(
         self,
-        scenario: str = "corridor",
+        scenario: str | os.PathLike[str] = "corridor",
         render_mode: str | None = None,
-        observation: str | Mapping[str, Any] | None = None,
-        reward: str = "srpb",
-        reward_weights: Mapping[str, float] | None = None,
-        collision: str = "terminate",
-        metrics: Mapping[str, Any] | None = None,
-        record_dir: str | None = None,
-        sim: Mapping[str, Any] | None = None,
-        robot: str | Mapping[str, Any] | None = None,
-        sensors: Mapping[str, Any] | None = None,
-        crowd: Mapping[str, Any] | None = None,
+        settings: EnvSettings | None = None,
+        **kwargs: Any,
     ) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise InputError(f"expected one of {self.metadata['render_modes']}, got "
-                             f"{render_mode!r}", key="render_mode")  # fmt: skip
+        check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        robot_cfg = RobotConfig.from_spec(robot)
-        self.scenario = load_scenario(scenario, robot_radius=robot_cfg.radius)
-        self.sim = build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
-        self.task: RobotTask = build_task(
-            self.sim, 0, self.scenario.robot.goal_tolerance, observation, reward,
-            reward_weights, collision, metrics, record_dir, self.scenario.reward,
-        )  # fmt: skip
+        self.settings = settings_of(settings, kwargs, type(self).__name__)
+        self.scenario = self.settings.load_scenario(scenario)
+        self.sim, (self.task,) = self.settings.build(self.scenario)
         self.observation_space = self.task.observation_space
         self.action_space = self.task.action_space
         self._cmd = np.zeros((1, 3))
@@ -314,8 +300,6 @@ class SRPBNavEnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; set render_mode at make()")
             return None
         if self._renderer is None:
-            from srpb_gym.render import Renderer
-
             self._renderer = Renderer(self.render_mode, fps=self.metadata["render_fps"])
         return self._renderer.render(self.sim, 0, self.running_metrics())
 
@@ -367,3 +351,21 @@ class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):
             registered = gym.registry.get(spec.id) if spec is not None else None
             if registered is not None and registered.max_episode_steps == limit:
                 base._warn_short_limit()  # the registered default, not the user's choice
+
+
+def check_render_mode(render_mode: str | None, modes: list[str]) -> None:
+    """A render mode of the environment's metadata, or ``None``."""
+    if render_mode is not None and render_mode not in modes:
+        raise InputError(f"expected one of {modes}, got {render_mode!r}", key="render_mode")
+
+
+def settings_of(settings: EnvSettings | None, kwargs: dict[str, Any], owner: str) -> EnvSettings:
+    """The settings of an environment: ``settings``, or those of its keyword arguments."""
+    if settings is None:
+        return EnvSettings.from_kwargs(kwargs, f"{owner}()")
+    if not isinstance(settings, EnvSettings):
+        raise InputError(f"expected an EnvSettings, got {settings!r}", key="settings")
+    if kwargs:
+        raise TypeError(f"{owner}() takes either settings or the keyword arguments that make "
+                        f"them, not both (got settings and {sorted(kwargs)[0]!r})")  # fmt: skip
+    return settings

@@ -1,5 +1,6 @@
-"""What the environment adapters share: building the simulation from plain-data arguments,
-drawing an episode's layout with the reset options, and the episode's time limit."""
+"""What the environment adapters share besides their settings
+(:class:`~srpb_gym.settings.EnvSettings`): drawing an episode's layout with the reset
+options, the planner's computation time and the episode's time limit."""
 
 from __future__ import annotations
 
@@ -13,42 +14,12 @@ from typing import Any
 import numpy as np
 
 from srpb_gym.errors import InputError
-from srpb_gym.perception.detector import DetectorConfig
-from srpb_gym.perception.lidar import LidarConfig
-from srpb_gym.perception.tracker import TrackerConfig
 from srpb_gym.scenarios import Scenario, sample
 from srpb_gym.scenarios.sampler import free_space_of
-from srpb_gym.sim.crowd import SocialForceConfig
 from srpb_gym.sim.layout import EpisodeLayout, RobotLayout
-from srpb_gym.sim.robot import RobotConfig
-from srpb_gym.simulation import SimConfig, Simulation
+from srpb_gym.simulation import Simulation
 
 RESET_OPTIONS = ("people", "start", "goal")
-SENSORS = ("lidar", "detector", "tracker")
-
-
-def build_simulation(
-    scenario: Scenario, sim: Mapping[str, Any] | None, robot: RobotConfig,
-    sensors: Mapping[str, Any] | None, crowd: Mapping[str, Any] | None,
-) -> Simulation:  # fmt: skip
-    """The simulation of an environment's arguments; sensors default to the scenario's."""
-    if sensors is not None and not isinstance(sensors, Mapping):
-        raise InputError(f"expected a mapping of {', '.join(SENSORS)} to presets or settings, "
-                         f"got {sensors!r}", key="sensors")  # fmt: skip
-    sensors = dict(sensors or {})
-    unknown = sorted(set(sensors) - set(SENSORS))
-    if unknown:
-        raise InputError(f"unknown sensor; valid: {', '.join(SENSORS)}",
-                         key=f"sensors.{unknown[0]}")  # fmt: skip
-    spec = scenario.sensors
-    return Simulation(
-        SimConfig.from_spec(sim),
-        robot,
-        LidarConfig.from_spec(sensors.get("lidar", spec.lidar), "sensors.lidar"),
-        DetectorConfig.from_spec(sensors.get("detector", spec.detector), "sensors.detector"),
-        TrackerConfig.from_spec(sensors.get("tracker", spec.tracker), "sensors.tracker"),
-        SocialForceConfig.from_spec(crowd, "crowd"),
-    )
 
 
 def episode_layout(

@@ -18,12 +18,13 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
-from srpb_gym.env import RESET_OPTIONS, SRPBNavEnv
+from srpb_gym.env import RESET_OPTIONS, SRPBNavEnv, settings_of
 from srpb_gym.episode_setup import episode_layout
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.registration import MIX_SCENARIOS
 from srpb_gym.scenarios import Scenario
+from srpb_gym.settings import EnvSettings
 from srpb_gym.sim.layout import EpisodeLayout
 from srpb_gym.simulation import Simulation
 from srpb_gym.task import RobotTask
@@ -112,8 +113,9 @@ class SRPBMixEnv(SRPBNavEnv):
     fformation, crossing, crowd, doorway); each scenario at most once (by name).
     ``weights``: one number >= 0 per scenario, not all 0, relative (default: equal).
     The other arguments are those of :class:`~srpb_gym.env.SRPBNavEnv` (``render_mode``,
-    ``observation``, ``reward``, ``reward_weights``, ``collision``, ``metrics``,
-    ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``), applied to every scenario;
+    and the settings ``observation``, ``reward``, ``reward_weights``, ``collision``,
+    ``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``, or
+    ``settings``: one :class:`~srpb_gym.settings.EnvSettings`), applied to every scenario;
     ``sensors`` replaces the sensors of every scenario. Recorded episodes are named after
     the episode's scenario (``crowd_seed3`` for ``reset(seed=3)`` drawing crowd), so the
     scenarios' records share ``record_dir``. Planners read ``knowledge()`` of the current
@@ -128,31 +130,20 @@ class SRPBMixEnv(SRPBNavEnv):
         scenarios: Sequence[str | os.PathLike[str]] | None = None,
         weights: Sequence[float] | None = None,
         render_mode: str | None = None,
-        observation: str | Mapping[str, Any] | None = None,
-        reward: str = "srpb",
-        reward_weights: Mapping[str, float] | None = None,
-        collision: str = "terminate",
-        metrics: Mapping[str, Any] | None = None,
-        record_dir: str | None = None,
-        sim: Mapping[str, Any] | None = None,
-        robot: str | Mapping[str, Any] | None = None,
-        sensors: Mapping[str, Any] | None = None,
-        crowd: Mapping[str, Any] | None = None,
+        settings: EnvSettings | None = None,
+        **kwargs: Any,
     ) -> None:
         items = _checked_scenarios(scenarios)
         probabilities = _checked_weights(weights, len(items))
-        shared = {
-            "observation": observation, "reward": reward, "reward_weights": reward_weights,
-            "collision": collision, "metrics": metrics, "record_dir": record_dir, "sim": sim,
-            "robot": robot, "sensors": sensors, "crowd": crowd,
-        }  # fmt: skip
+        settings = settings_of(settings, kwargs, type(self).__name__)
         with _naming(items, 0):
-            super().__init__(items[0], render_mode, **shared)
+            super().__init__(items[0], render_mode, settings)
         parts = [_Part(self.scenario, self.sim, self.task)]
         for i, item in enumerate(items[1:], 1):
             with _naming(items, i):
-                other = SRPBNavEnv(item, None, **shared)
-            parts.append(_Part(other.scenario, other.sim, other.task))
+                scenario = settings.load_scenario(item)
+                sim, (task,) = settings.build(scenario)
+            parts.append(_Part(scenario, sim, task))
         _check_parts(items, parts)
         self._parts = parts
         self._given = tuple(os.fspath(item) for item in items)

@@ -17,6 +17,8 @@ Module-level functions follow PettingZoo's environment families::
 from __future__ import annotations
 
 import math
+import numbers
+import os
 import time
 import uuid
 from collections.abc import Mapping
@@ -29,18 +31,13 @@ from numpy.typing import NDArray
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import conversions, wrappers
 
-from srpb_gym.episode_setup import (
-    build_simulation,
-    episode_layout,
-    out_of_time,
-    planning_seconds,
-)
+from srpb_gym.env import check_render_mode, settings_of
+from srpb_gym.episode_setup import episode_layout, out_of_time, planning_seconds
 from srpb_gym.errors import InputError
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.observation import ObservationConfig
-from srpb_gym.planners.base import Knowledge
-from srpb_gym.scenarios import load_scenario
-from srpb_gym.sim.robot import RobotConfig
-from srpb_gym.task import RobotTask, build_task
+from srpb_gym.render import Renderer
+from srpb_gym.settings import EnvSettings
 
 __all__ = ["SRPBParallelEnv", "env", "parallel_env", "raw_env"]
 
@@ -72,8 +69,9 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
     truncated with its metrics. The episode ends when no agent is left.
 
     ## Arguments
-    ``scenario``, ``render_mode``, ``observation``, ``reward``, ``reward_weights``,
-    ``collision``, ``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``:
+    ``scenario``, ``render_mode`` and the settings ``observation``, ``reward``,
+    ``reward_weights``, ``collision``, ``metrics``, ``record_dir``, ``sim``, ``robot``,
+    ``sensors``, ``crowd`` (or ``settings``: one :class:`~srpb_gym.settings.EnvSettings`):
     as :class:`srpb_gym.env.SRPBNavEnv` (the episode files of robot r end in ``_robot<r>``
     when there are several). ``n_robots``: how many robots; more than the scenario has
     places for is an error that names its limit. ``max_steps``: an optional step limit.
@@ -98,28 +96,17 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
 
     def __init__(
         self,
-        scenario: str = "crowd",
+        scenario: str | os.PathLike[str] = "crowd",
         n_robots: int = 2,
         render_mode: str | None = None,
-        observation: str | Mapping[str, Any] | None = None,
-        reward: str = "srpb",
-        reward_weights: Mapping[str, float] | None = None,
-        collision: str = "terminate",
-        metrics: Mapping[str, Any] | None = None,
-        record_dir: str | None = None,
-        sim: Mapping[str, Any] | None = None,
-        robot: str | Mapping[str, Any] | None = None,
-        sensors: Mapping[str, Any] | None = None,
-        crowd: Mapping[str, Any] | None = None,
         max_steps: int | None = None,
+        settings: EnvSettings | None = None,
+        **kwargs: Any,
     ) -> None:
-        EzPickle.__init__(self, scenario, n_robots, render_mode, observation, reward,
-                          reward_weights, collision, metrics, record_dir, sim, robot, sensors,
-                          crowd, max_steps)  # fmt: skip
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise InputError(f"expected one of {self.metadata['render_modes']}, got "
-                             f"{render_mode!r}", key="render_mode")  # fmt: skip
-        if isinstance(n_robots, bool) or not isinstance(n_robots, int) or n_robots < 1:
+        EzPickle.__init__(self, scenario, n_robots, render_mode, max_steps, settings, **kwargs)
+        check_render_mode(render_mode, self.metadata["render_modes"])
+        if (isinstance(n_robots, (bool, np.bool_)) or not isinstance(n_robots, numbers.Integral)
+                or n_robots < 1):  # fmt: skip
             raise InputError(f"expected a whole number >= 1, got {n_robots!r}", key="n_robots")
         if max_steps is not None and (
             isinstance(max_steps, bool) or not isinstance(max_steps, int) or max_steps < 1
@@ -127,25 +114,17 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
             raise InputError(f"expected a whole number >= 1, got {max_steps!r}",
                              key="max_steps")  # fmt: skip
         self.render_mode = render_mode
-        robot_cfg = RobotConfig.from_spec(robot)
-        self.scenario = load_scenario(scenario, robot_radius=robot_cfg.radius)
-        self.scenario.robot_specs(n_robots)  # more robots than places: an error naming them
-        self.n_robots, self.max_steps = n_robots, max_steps
-        self.sim = build_simulation(self.scenario, sim, robot_cfg, sensors, crowd)
-        settings = (observation, reward, reward_weights, collision, metrics, record_dir)
-        tolerances = [_robot_spec(self.scenario, r, n_robots).goal_tolerance
-                      for r in range(n_robots)]  # fmt: skip
-        self.tasks: list[RobotTask] = [
-            build_task(self.sim, r, tolerance, *settings, self.scenario.reward)
-            for r, tolerance in enumerate(tolerances)
-        ]
-        self.possible_agents = [f"robot_{r}" for r in range(n_robots)]
+        self.settings = settings_of(settings, kwargs, type(self).__name__)
+        self.scenario = self.settings.load_scenario(scenario)
+        self.n_robots, self.max_steps = int(n_robots), max_steps
+        self.sim, self.tasks = self.settings.build(self.scenario, self.n_robots)
+        self.possible_agents = [f"robot_{r}" for r in range(self.n_robots)]
         self.agents: list[str] = []
         self._task = dict(zip(self.possible_agents, self.tasks))
         self.observation_spaces = {a: t.observation_space for a, t in self._task.items()}
         self.action_spaces = {a: t.action_space for a, t in self._task.items()}
-        self._cmd = np.zeros((n_robots, 3))
-        self._planning = np.full(n_robots, math.nan)
+        self._cmd = np.zeros((self.n_robots, 3))
+        self._planning = np.full(self.n_robots, math.nan)
         self._override: dict[str, float] = {}
         self._np_random: np.random.Generator | None = None
         self._steps, self._episode = 0, 0
@@ -250,8 +229,6 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
             gym.logger.warn("render() called without a render_mode; set render_mode at creation")
             return None
         if self._renderer is None:
-            from srpb_gym.render import Renderer
-
             self._renderer = Renderer(self.render_mode, fps=self.metadata["render_fps"])
         shown = self._task[self.agents[0]] if self.agents else self.tasks[0]
         return self._renderer.render(self.sim, shown.robot, shown.running_metrics())
@@ -271,11 +248,6 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         base = (f"{self.scenario.name}_seed{self._seed}" if self._seed is not None
                 else f"{self.scenario.name}_{self._token}_{self._episode:05d}")  # fmt: skip
         return base if self.n_robots == 1 else f"{base}_robot{robot}"
-
-
-def _robot_spec(scenario: Any, robot: int, n_robots: int) -> Any:
-    """The scenario's entry for robot ``robot``: ``robot`` alone, else ``robots[i]``."""
-    return scenario.robot_specs(n_robots)[robot]
 
 
 def parallel_env(**kwargs: Any) -> SRPBParallelEnv:

@@ -48,10 +48,8 @@ scenario's weights for that preset (its ``reward`` section), then overridden by 
 from __future__ import annotations
 
 import math
-import numbers
 import warnings
 from collections.abc import Mapping
-from importlib.resources import files
 from typing import Any
 
 import numpy as np
@@ -59,61 +57,28 @@ from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.errors import InputError
 from srpb_gym.metrics import kernels
 from srpb_gym.metrics.episode import TAUBIN_MIN_MEMBERS, group_values
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.metrics.record import EpisodeRecord
-from srpb_gym.scenarios.yaml_io import load_file
+from srpb_gym.reward_terms import (
+    SRPB_TERMS,
+    TASK_TERMS,
+    TERM_INDEX,
+    TERMS,
+    check_weights,
+    load_preset,
+    preset_names,
+)
 
-TASK_TERMS: tuple[str, ...] = ("progress", "success", "collision", "time", "approach")
-SRPB_TERMS: tuple[str, ...] = (
-    "obs", "vsm", "hsm", "osc", "bwd", "iprot", "chc", "psi", "fsi", "dir",
-)  # fmt: skip
-TERMS: tuple[str, ...] = TASK_TERMS + SRPB_TERMS
-_T = {name: i for i, name in enumerate(TERMS)}
-
-
-def preset_names() -> list[str]:
-    """Names of the packaged reward presets."""
-    return sorted(p.name[:-5] for p in files("srpb_gym.reward_presets").iterdir()
-                  if p.name.endswith(".yaml"))  # fmt: skip
-
-
-def load_preset(name: str) -> dict[str, float]:
-    """The weights of a packaged preset (``task`` or ``srpb``)."""
-    if not isinstance(name, str) or name not in preset_names():
-        raise InputError(f"unknown reward preset {name!r}; choose one of {preset_names()}",
-                         key="reward")  # fmt: skip
-    path = files("srpb_gym.reward_presets") / f"{name}.yaml"
-    return check_weights(load_file(path, str(path)), file=str(path))
-
-
-def check_weights(
-    weights: Mapping[str, Any], where: str = "reward_weights", file: str | None = None
-) -> dict[str, float]:
-    """Weights by term name, each a finite number; unknown names are errors. ``where``
-    names the mapping in errors (``file``: the file it was read from, if any)."""
-    prefix = "" if file is not None else f"{where}."
-    if not isinstance(weights, Mapping):
-        raise InputError(f"expected a mapping of term names to weights, got {weights!r}",
-                         file, key=None if file is not None else where)  # fmt: skip
-    out = {}
-    for name, value in weights.items():
-        if name not in _T:
-            raise InputError(f"unknown reward term; valid terms: {', '.join(TERMS)}",
-                             file, key=f"{prefix}{name}")  # fmt: skip
-        number = math.nan
-        if isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_)):
-            try:
-                number = float(value)
-            except OverflowError:  # an int too large for a float
-                number = math.inf
-        if not math.isfinite(number):
-            raise InputError(f"expected a finite number, got {value!r}", file,
-                             key=f"{prefix}{name}")  # fmt: skip
-        out[name] = number
-    return out
+# the term names and presets are part of this module's interface (their home is the
+# ground-floor module srpb_gym.reward_terms, which scenario files are checked against)
+__all__ = [
+    "APPROACH_RADIUS", "APPROACH_YAW", "EVENT_TERMS", "MEASURED_MARGIN", "PRESET_GAMMA",
+    "SHAPING_TERMS", "SRPB_TERMS", "TASK_TERMS", "TERMS", "RewardFunction",
+    "RewardGameableWarning", "approach_error", "check_weights", "load_preset",
+    "preset_names", "resolve_weights", "shaping_bound", "step_bounds",
+]  # fmt: skip
 
 
 def resolve_weights(
@@ -220,7 +185,7 @@ class RewardFunction:
         if key in self._checked:
             return
         self._checked.add(key)
-        penalty = -float(self.weights[_T["collision"]])
+        penalty = -float(self.weights[TERM_INDEX["collision"]])
         bound = shaping_bound(self.weights, time_limit, control_dt, robot, gamma)
         if bound > 0.0 and bound >= penalty:
             what = (f"the collision penalty {penalty:.3g}" if penalty > 0.0 else

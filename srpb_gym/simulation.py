@@ -32,9 +32,9 @@ from srpb_gym.perception.groups import seen_groups
 from srpb_gym.perception.lidar import Lidar, LidarConfig
 from srpb_gym.perception.sensing import sense
 from srpb_gym.perception.tracker import KalmanTracker, TrackerConfig
+from srpb_gym.recording import GROW_TRACK_PERSON, GROW_TRACKED, MIN_GROUP, OK, record_sample
 from srpb_gym.sim.crowd import Crowd, SocialForceConfig
 from srpb_gym.sim.layout import EpisodeLayout
-from srpb_gym.sim.recording import GROW_TRACK_PERSON, GROW_TRACKED, MIN_GROUP, OK, record_sample
 from srpb_gym.sim.robot import RobotConfig, body_to_world, limit_commands, measure_velocity
 from srpb_gym.sim.world import World
 

@@ -32,26 +32,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.metrics import METRIC_NAMES, SRPBMetricWarning, evaluate, resolve_params
 from srpb_gym.metrics.episode import at_goal
+from srpb_gym.metrics.io_native import write_native
+from srpb_gym.metrics.io_npz import save_record
 from srpb_gym.metrics.params import MetricParams, check_semantics
 from srpb_gym.metrics.record import EpisodeRecord
 from srpb_gym.observation import ObservationBuilder, ObservationConfig
 from srpb_gym.perception.lidar import beam_angles
-from srpb_gym.planners.base import Knowledge
 from srpb_gym.reward import SRPB_TERMS, TERMS, RewardFunction, resolve_weights
 from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.simulation import Simulation
 
 COLLISION_MODES = ("terminate", "continue")
 METRIC_KEYS = ("semantics", "preset", "params")
-
-
-def robot_max_speed(robot: RobotConfig) -> float:
-    """The largest linear speed the base can reach [m/s] (forward or backward; with the
-    lateral bound for a holonomic base)."""
-    speed = max(robot.v_max, -robot.v_min)
-    return math.hypot(speed, robot.vy_max) if robot.kinematics == "holonomic" else speed
 
 
 @dataclass(frozen=True)
@@ -90,7 +85,7 @@ class MetricSettings:
                              f"{explicit!r}", key="metrics.params")  # fmt: skip
         derived = {
             "robot_circumradius": robot.radius,
-            "robot_max_speed": robot_max_speed(robot),
+            "robot_max_speed": robot.max_speed,
             "goal_tolerance_xy": goal_tolerance,
         }
         try:
@@ -264,9 +259,6 @@ class RobotTask:
     def write(self, base: str) -> None:
         """Write the episode as ``<base>_robot.txt``, ``_people.txt``, ``_groups.txt`` (SRPB
         native logs), ``<base>.npz`` and ``<base>_gt.npz`` (ground truth)."""
-        from srpb_gym.metrics.io_native import write_native
-        from srpb_gym.metrics.io_npz import save_record
-
         state = self.sim.robots[self.robot]
         write_native(state.record, f"{base}_robot.txt", f"{base}_people.txt",
                      f"{base}_groups.txt")  # fmt: skip

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import dataclasses
 import math
 import pickle
 import warnings
@@ -15,13 +16,14 @@ import yaml
 from gymnasium.utils.env_checker import check_env
 
 import srpb_gym  # noqa: F401  (registers the environments)
-from srpb_gym import mix
 from srpb_gym.env import SRPBNavEnv
 from srpb_gym.errors import InputError
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.mix import SRPBMixEnv
+from srpb_gym.observation import ObservationConfig
 from srpb_gym.registration import MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 from srpb_gym.resources import scenarios_dir
+from srpb_gym.settings import EnvSettings
 from tests.helpers import same
 
 STOP = np.zeros(2, dtype=np.float32)
@@ -221,12 +223,14 @@ def test_a_scenario_file_error_names_the_file(tmp_path):
 def test_different_spaces_are_refused(monkeypatch):
     """A scenario whose observation would differ is refused, naming it and the space."""
 
-    def member(scenario, render_mode, **kwargs):
-        if scenario == "crowd":
-            kwargs["observation"] = {"people": 4}
-        return SRPBNavEnv(scenario, render_mode, **kwargs)
+    built = EnvSettings.task
 
-    monkeypatch.setattr(mix, "SRPBNavEnv", member)
+    def task(self, sim, robot, scenario, n_robots=1):
+        if scenario.name == "crowd":
+            self = dataclasses.replace(self, observation=ObservationConfig(people=4))
+        return built(self, sim, robot, scenario, n_robots)
+
+    monkeypatch.setattr(EnvSettings, "task", task)
     with pytest.raises(InputError, match=r"'crowd' gives the observation_space Box") as caught:
         gym.make(MIX_ID, scenarios=["corridor", "doorway", "crowd"])
     assert caught.value.key == "scenarios[2]"

@@ -25,7 +25,7 @@ from srpb_gym.reward import (
     resolve_weights,
 )
 from srpb_gym.sim.robot import RobotConfig
-from srpb_gym.task import MetricSettings, robot_max_speed
+from srpb_gym.task import MetricSettings
 
 
 def same(a: float, b: float) -> bool:
@@ -411,7 +411,7 @@ def test_robot_settings_drive_the_metric_parameters():
     preset = MetricSettings.build({"preset": "srpb-code"}, RobotConfig(), 0.2)
     assert preset.params.robot_max_speed == 0.5 and preset.params.person_fov > 3.31
     holonomic = RobotConfig(kinematics="holonomic")
-    assert robot_max_speed(holonomic) == pytest.approx(math.hypot(0.5, 0.3))
+    assert holonomic.max_speed == pytest.approx(math.hypot(0.5, 0.3))
 
 
 @pytest.mark.parametrize(

@@ -17,6 +17,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from srpb_gym.metrics import kernels
+from srpb_gym.metrics.episode import group_ellipses
+
 if TYPE_CHECKING:
     from srpb_gym.metrics.params import MetricParams
     from srpb_gym.perception.tracker import Tracks
@@ -123,9 +126,6 @@ def ospace_gaussians(
     semantics): the ellipse (centre x, y, semi-axes a, b, orientation) of
     :func:`srpb_gym.metrics.episode.group_ellipses` and the element-wise largest position
     covariance of the members (sxx, sxy, syy)."""
-    from srpb_gym.metrics import kernels
-    from srpb_gym.metrics.episode import group_ellipses
-
     g = size.shape[0]
     if g == 0:
         return np.zeros((0, 8))

@@ -4,13 +4,14 @@ name from plain-data settings (see :mod:`srpb_gym.planners.config`)."""
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Mapping
 from typing import Any
 
 from srpb_gym.errors import InputError
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.planners.base import (
     PERSON_RADIUS,
-    Knowledge,
     Planner,
     command_to_action,
     heading_error,
@@ -20,7 +21,7 @@ from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
 from srpb_gym.planners.go_to_goal import GoToGoal, GoToGoalConfig
 from srpb_gym.planners.recovery import RecoveryConfig
 from srpb_gym.planners.social_dwa import SocialDWA, SocialDWAConfig
-from srpb_gym.planners.social_force import SocialForceConfig, SocialForcePlanner
+from srpb_gym.planners.social_force import SocialForcePlanner, SocialForcePlannerConfig
 
 PLANNERS: dict[str, type[Planner]] = {
     GoToGoal.name: GoToGoal,
@@ -78,6 +79,17 @@ def make_planner(name: str, config: Any = None, path: str | None = None) -> Plan
 
 __all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "DWAConfig", "GlobalPlanner",
            "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge", "Planner",
-           "RecoveryConfig", "SocialDWA", "SocialDWAConfig", "SocialForceConfig",
-           "SocialForcePlanner", "check_settings", "command_to_action", "heading_error",
+           "RecoveryConfig", "SocialDWA", "SocialDWAConfig", "SocialForcePlanner",
+           "SocialForcePlannerConfig", "check_settings", "command_to_action", "heading_error",
            "make_planner", "planner_config"]  # fmt: skip
+
+
+def __getattr__(name: str) -> Any:
+    # SocialForceConfig was this planner's settings class before the name was left to the
+    # crowd model (srpb_gym.sim.crowd.SocialForceConfig): the old name still works, warned
+    if name == "SocialForceConfig":
+        warnings.warn("srpb_gym.planners.SocialForceConfig is now SocialForcePlannerConfig "
+                      "(SocialForceConfig is the crowd model's settings, srpb_gym.sim.crowd)",
+                      DeprecationWarning, stacklevel=2)  # fmt: skip
+        return SocialForcePlannerConfig
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -5,53 +5,22 @@ A planner sees what the robot knows, never the ground truth: the observation and
 covariances, lidar scan), from which classical planners decide and learned policies that
 record their observation settings build their own observation. It returns an action of
 the environment's action space (``Box(-1, 1)``; see :class:`srpb_gym.env.SRPBNavEnv`).
+:class:`Knowledge` lives in :mod:`srpb_gym.knowledge`, below the task that builds it and the
+planners that read it.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.perception.tracker import Tracks
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.sim.robot import RobotConfig
-
-
-@dataclass(frozen=True)
-class Knowledge:
-    """What the robot knows at one control step (arrays are read-only views; copy to keep).
-
-    ``walls`` (S, 4) segments and ``bounds`` (xmin, ymin, xmax, ymax) [m]: the static map.
-    ``pose`` (x, y, yaw), ``velocity`` measured body-frame (vx, vy, omega), ``command`` the
-    last command sent (vx, vy, omega), ``goal`` (x, y, yaw), ``goal_tolerance`` [m].
-    ``tracks``: the tracker's people (ids, xy, velocity, yaw, 2x2 covariance, ...).
-    ``scan`` lidar ranges [m] at ``scan_angles`` (relative to the heading), ``range_max``
-    and ``range_min`` [m], the lidar's reading limits.
-    ``robot``: the base's limits; ``control_dt`` [s]; ``t`` [s] since the episode start.
-    """
-
-    walls: NDArray[np.float64]
-    bounds: tuple[float, float, float, float]
-    pose: NDArray[np.float64]
-    velocity: NDArray[np.float64]
-    command: NDArray[np.float64]
-    goal: NDArray[np.float64]
-    goal_tolerance: float
-    goal_yaw_tolerance: float
-    tracks: Tracks
-    scan: NDArray[np.float64]
-    scan_angles: NDArray[np.float64]
-    range_max: float
-    robot: RobotConfig
-    control_dt: float
-    t: float
-    range_min: float = 0.05  # the default lidar's
-
 
 #: Assumed body radius of a tracked person [m], the default of the planners' settings.
 PERSON_RADIUS = 0.3

@@ -27,7 +27,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.planners.base import PERSON_RADIUS, Knowledge, Planner, command_to_action
+from srpb_gym.knowledge import Knowledge
+from srpb_gym.planners.base import PERSON_RADIUS, Planner, command_to_action
 from srpb_gym.planners.config import PlannerConfig
 from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
 from srpb_gym.planners.recovery import Recovery, RecoveryConfig, goal_turn

@@ -22,7 +22,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from srpb_gym.planners.base import PERSON_RADIUS, Knowledge
+from srpb_gym.knowledge import Knowledge
+from srpb_gym.planners.base import PERSON_RADIUS
 from srpb_gym.planners.config import PlannerConfig
 from srpb_gym.planners.grid import (
     grid_search,

@@ -11,7 +11,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.planners.base import Knowledge, Planner, command_to_action, heading_error
+from srpb_gym.knowledge import Knowledge
+from srpb_gym.planners.base import Planner, command_to_action, heading_error
 from srpb_gym.planners.config import PlannerConfig
 
 

@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.planners.base import Knowledge
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.planners.config import PlannerConfig
 from srpb_gym.planners.global_planner import GlobalPlanner
 

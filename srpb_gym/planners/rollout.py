@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from srpb_gym.planners.base import Knowledge
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.planners.global_planner import GlobalPlanner
 
 

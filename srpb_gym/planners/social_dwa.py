@@ -28,12 +28,12 @@ from numba import njit
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.metrics import kernels
 from srpb_gym.metrics.kernels import gauss
 from srpb_gym.metrics.params import MetricParams
 from srpb_gym.perception.groups import detect_groups, ospace_gaussians
 from srpb_gym.perception.tracker import Tracks
-from srpb_gym.planners.base import Knowledge
 from srpb_gym.planners.config import SettingError
 from srpb_gym.planners.dwa import DWA, DWAConfig
 from srpb_gym.planners.global_planner import GlobalPlannerConfig
@@ -184,12 +184,10 @@ class SocialDWA(DWA):
         self._ellipses, self._gcov = np.zeros((0, 5)), np.zeros((0, 3))
 
     def reset(self, knowledge: Knowledge) -> None:
-        from srpb_gym.task import robot_max_speed  # (the task module imports the planners)
-
         super().reset(knowledge)
         robot = knowledge.robot
         self.params = MetricParams().replace(
-            robot_circumradius=robot.radius, robot_max_speed=robot_max_speed(robot)
+            robot_circumradius=robot.radius, robot_max_speed=robot.max_speed
         )
         self._memory = np.zeros((0, 9))  # remembered groups: ellipse (5), cov (3), time seen
         self._best_c2g, self._progress_t, self._social_scale = math.inf, knowledge.t, 1.0

@@ -24,7 +24,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.angles import wrap_angle
-from srpb_gym.planners.base import PERSON_RADIUS, Knowledge, Planner, command_to_action
+from srpb_gym.knowledge import Knowledge
+from srpb_gym.planners.base import PERSON_RADIUS, Planner, command_to_action
 from srpb_gym.planners.config import PlannerConfig
 from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
 from srpb_gym.planners.recovery import Recovery, RecoveryConfig, goal_turn
@@ -32,7 +33,7 @@ from srpb_gym.planners.rollout import people_array, rollout, scan_points
 
 
 @dataclass(frozen=True)
-class SocialForceConfig(PlannerConfig):
+class SocialForcePlannerConfig(PlannerConfig):
     """Settings of the :class:`SocialForcePlanner` (lengths in m, times in s, speeds in
     m/s, accelerations in m/s^2). The robot's radius, bumper, velocity and acceleration
     limits come from its :class:`~srpb_gym.sim.robot.RobotConfig`."""
@@ -95,14 +96,14 @@ class SocialForcePlanner(Planner):
     ``global_planner`` and ``recovery``: the settings of its :class:`GlobalPlanner` and
     :class:`~srpb_gym.planners.recovery.Recovery`.
 
-    ``config``: the settings (:class:`SocialForceConfig`, a mapping of the fields to
+    ``config``: the settings (:class:`SocialForcePlannerConfig`, a mapping of the fields to
     change, or ``None``: the defaults).
     """
 
     name = "social-force"
-    config_class: ClassVar[type[SocialForceConfig]] = SocialForceConfig
+    config_class: ClassVar[type[SocialForcePlannerConfig]] = SocialForcePlannerConfig
 
-    def __init__(self, config: SocialForceConfig | Mapping[str, Any] | None = None) -> None:
+    def __init__(self, config: SocialForcePlannerConfig | Mapping[str, Any] | None = None) -> None:
         self.config = cfg = self.config_class.from_spec(config)
         self.planner = GlobalPlanner(cfg.global_planner, cfg.person_radius)
         self.recovery = Recovery(cfg.recovery)

@@ -12,9 +12,10 @@ One robot starts from the scenario's ``robot`` entry, several (up to
 ``scenario.max_robots``) from its ``robots`` entries.
 The file format is documented in ``envs/README.md``.
 
-Modules, each importing only those before it: ``yaml_io`` (safe YAML reading with line
-numbers), ``space`` (geometry, free-space grid), ``schema`` (dataclasses), ``reader``
-(typed values), ``sampler``, ``validate``, ``loader``.
+Modules, each importing only those before it (files are read by :mod:`srpb_gym.yaml_io`,
+the safe YAML reader): ``space`` (geometry, free-space grid), ``routes`` (the walking
+route graph), ``schema`` (dataclasses), ``reader`` (typed values), ``sampler``,
+``validate``, ``loader``.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Reading scenario files: strict typed parsing of each section, packaged scenarios.
 
 ``load_scenario("corridor")`` loads the packaged ``corridor.yaml``; a path loads that file.
-The file is read by :mod:`~srpb_gym.scenarios.yaml_io` (size, encoding, aliases, syntax)
+The file is read by :mod:`~srpb_gym.yaml_io` (size, encoding, aliases, syntax)
 and its values by :class:`~srpb_gym.scenarios.reader.Reader`. Every key is checked: an
 unknown key, a value of the wrong type or out of range raises
 :class:`~srpb_gym.errors.InputError` as ``file:line: dotted.key: what is wrong``. The loaded
@@ -20,6 +20,7 @@ import numpy as np
 
 from srpb_gym.errors import InputError
 from srpb_gym.resources import scenarios_dir
+from srpb_gym.reward_terms import TERMS, preset_names
 from srpb_gym.scenarios.reader import MAX_COORDINATE, Reader, describe
 from srpb_gym.scenarios.schema import (
     DEFAULT_ROBOT_RADIUS,
@@ -47,7 +48,7 @@ from srpb_gym.scenarios.space import (
     ring_segments,
 )
 from srpb_gym.scenarios.validate import validate
-from srpb_gym.scenarios.yaml_io import read_file, read_yaml
+from srpb_gym.yaml_io import read_file, read_yaml
 
 SUFFIXES = (".yaml", ".yml")
 TOP_KEYS = (
@@ -366,9 +367,6 @@ def _sensors(r: Reader, value: Any) -> SensorSpecs:
 
 
 def _reward(r: Reader, value: Any) -> dict[str, dict[str, float]]:
-    # srpb_gym.reward reads its presets through this package: imported when needed
-    from srpb_gym.reward import TERMS, preset_names
-
     presets = r.mapping(value if value is not None else {}, "reward", preset_names())
     out = {}
     for preset, weights in presets.items():

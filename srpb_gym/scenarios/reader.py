@@ -1,7 +1,7 @@
 """Typed access to parsed scenario YAML: every value checked, every error located.
 
 :class:`Reader` reads numbers, ranges, points, places and angles from the plain data of
-:func:`~srpb_gym.scenarios.yaml_io.read_yaml` and raises
+:func:`~srpb_gym.yaml_io.read_yaml` and raises
 :class:`~srpb_gym.errors.InputError` as ``file:line: dotted.key: what is wrong``.
 """
 

@@ -17,7 +17,7 @@
 
 A leg of a person's route that the body cannot walk in a straight line (it would come
 closer than ``GAP`` to a wall) gets the corners of the shortest way around the walls
-inserted (:class:`~srpb_gym.scenarios.space.RouteGraph`, computed once per scenario); a
+inserted (:class:`~srpb_gym.scenarios.routes.RouteGraph`, computed once per scenario); a
 fixed route is first walked that way for the largest body radius, and its people are
 placed along it. This takes nothing from ``rng``. A unit whose route has no way around the
 walls does not fit and is drawn again.
@@ -38,6 +38,7 @@ import numpy as np
 
 from srpb_gym.angles import wrap_angle
 from srpb_gym.errors import InputError
+from srpb_gym.scenarios.routes import RouteGraph, route_graph
 from srpb_gym.scenarios.schema import (
     PLACEMENT_GAP,
     Range,
@@ -46,7 +47,7 @@ from srpb_gym.scenarios.schema import (
     WalkerEntry,
     YawSpec,
 )
-from srpb_gym.scenarios.space import FreeSpace, Point, RouteGraph, free_space, route_graph
+from srpb_gym.scenarios.space import FreeSpace, Point, free_space
 from srpb_gym.sim.layout import EpisodeLayout, FormationLayout, PersonLayout, RobotLayout
 
 MAX_TRIES = 200  # random placements per robot pose, formation or walking unit

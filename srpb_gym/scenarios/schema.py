@@ -19,7 +19,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
-from srpb_gym.scenarios.space import Bounds, FreeSpace, Place, Point, RouteGraph
+from srpb_gym.scenarios.routes import RouteGraph
+from srpb_gym.scenarios.space import Bounds, FreeSpace, Place, Point
 
 # m, circumradius of the default robot (``srpb_gym.sim.robot.RobotConfig().radius``); a
 # scenario is validated and sampled for the radius given to ``load_scenario``

@@ -21,7 +21,7 @@ raising a located :class:`~srpb_gym.errors.InputError`:
   least the largest body radius plus 5 cm (plus the waypoint jitter) away from walls (the
   F-formation circle, likewise, keeps 5 cm), and every leg of a route (taken between
   region centres for spawn entries) can be walked by the largest body, in a straight line
-  or around the walls (the scenario's :class:`~srpb_gym.scenarios.space.RouteGraph`,
+  or around the walls (the scenario's :class:`~srpb_gym.scenarios.routes.RouteGraph`,
   attached to the returned scenario);
 * a route is long enough for its people to queue along it;
 * sensor specs are accepted by the perception configs (when those modules are present);
@@ -40,6 +40,7 @@ from dataclasses import replace
 import numpy as np
 
 from srpb_gym.errors import InputError
+from srpb_gym.scenarios.routes import RouteGraph
 from srpb_gym.scenarios.sampler import free_space_of, routes_of, sample
 from srpb_gym.scenarios.schema import (
     PLACEMENT_GAP,
@@ -49,7 +50,7 @@ from srpb_gym.scenarios.schema import (
     WalkerEntry,
     checked_robot_radius,
 )
-from srpb_gym.scenarios.space import FreeSpace, Place, Point, RouteGraph
+from srpb_gym.scenarios.space import FreeSpace, Place, Point
 
 TRIAL_SEEDS = 8  # layouts drawn at load time
 SENSOR_CONFIGS = (

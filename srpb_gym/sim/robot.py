@@ -62,6 +62,13 @@ class RobotConfig:
         return self.DIMS[self.kinematics]
 
     @property
+    def max_speed(self) -> float:
+        """The largest linear speed the base can reach [m/s] (forward or backward; with the
+        lateral bound for a holonomic base)."""
+        speed = max(self.v_max, -self.v_min)
+        return math.hypot(speed, self.vy_max) if self.kinematics == "holonomic" else speed
+
+    @property
     def velocity_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Lower and upper bounds of (vx, vy, omega)."""
         vy = self.vy_max if self.kinematics == "holonomic" else 0.0

@@ -21,7 +21,7 @@ from typing import Any
 
 from srpb_gym.config import from_dict, parse_overrides
 from srpb_gym.errors import InputError
-from srpb_gym.scenarios.yaml_io import read_file, read_yaml
+from srpb_gym.yaml_io import read_file, read_yaml
 
 __all__ = ["DEFAULT_KEY", "TrainConfig", "config_file", "load_entries", "parse_overrides",
            "resolve", "rl_zoo_document", "rl_zoo_entry"]  # fmt: skip

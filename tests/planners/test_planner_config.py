@@ -19,8 +19,8 @@ from srpb_gym.planners import (
     RecoveryConfig,
     SocialDWA,
     SocialDWAConfig,
-    SocialForceConfig,
     SocialForcePlanner,
+    SocialForcePlannerConfig,
     check_settings,
     make_planner,
     planner_config,
@@ -34,8 +34,8 @@ from srpb_gym.planners.config import (
 )
 from srpb_gym.planners.recovery import Recovery
 
-CONFIGS = [DWAConfig, SocialDWAConfig, SocialForceConfig, GoToGoalConfig, GlobalPlannerConfig,
-           RecoveryConfig]  # fmt: skip
+CONFIGS = [DWAConfig, SocialDWAConfig, SocialForcePlannerConfig, GoToGoalConfig,
+           GlobalPlannerConfig, RecoveryConfig]  # fmt: skip
 
 
 def test_every_planner_has_a_config() -> None:
@@ -173,3 +173,10 @@ def test_docs_list_every_setting_with_its_default() -> None:
             value = getattr(config, field.name)
             shown = f"`{type(value).__name__}`" if dataclasses.is_dataclass(value) else f"`{value}`"
             assert f"| `{field.name}` | {shown}" in section, (cls.__name__, field.name)
+
+
+def test_old_planner_settings_name_still_works():
+    import srpb_gym.planners as planners
+
+    with pytest.warns(DeprecationWarning, match="SocialForcePlannerConfig"):
+        assert planners.SocialForceConfig is SocialForcePlannerConfig

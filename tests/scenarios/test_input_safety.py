@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 import srpb_gym  # noqa: F401  (registers the environments)
+from srpb_gym import yaml_io
 from srpb_gym.errors import InputError
-from srpb_gym.scenarios import load_scenario, parse_scenario, sample, yaml_io
+from srpb_gym.scenarios import load_scenario, parse_scenario, sample
 
 GOOD = """\
 name: test

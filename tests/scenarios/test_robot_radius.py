@@ -166,7 +166,7 @@ def test_yaw_ranges_are_wrapped():
 
 # --- the module graph ----------------------------------------------------------------------
 
-MODULES = ("yaml_io", "space", "schema", "reader", "sampler", "validate", "loader")
+MODULES = ("space", "routes", "schema", "reader", "sampler", "validate", "loader")
 
 
 @pytest.mark.parametrize("module", MODULES)

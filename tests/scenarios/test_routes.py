@@ -9,8 +9,9 @@ import textwrap
 import numpy as np
 
 from srpb_gym.scenarios import parse_scenario, sample, validate
+from srpb_gym.scenarios.routes import route_graph, segment_clearance
 from srpb_gym.scenarios.schema import PLACEMENT_GAP
-from srpb_gym.scenarios.space import crosses_walls, route_graph, segment_clearance
+from srpb_gym.scenarios.space import crosses_walls
 from srpb_gym.sim.crowd import STOPPED, Crowd
 
 DOOR = (3.525, 4.475)  # the 0.95 m door in the wall from x = 5.95 to 6.05
