@@ -26,9 +26,10 @@ functions that need them.
 """
 
 from srpb_gym.evaluation.compare import compare_runs
+from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, PlannerSpec, Task
 from srpb_gym.evaluation.harness import RunOutcome, run_evaluation
-from srpb_gym.evaluation.runner import EpisodeResult, Task, run_episode, warm_up
-from srpb_gym.evaluation.spec import EvalConfig, PlannerSpec, resolve_config
+from srpb_gym.evaluation.runner import run_episode, warm_up
+from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.evaluation.stats import read_episodes, summarize
 
 __all__ = [

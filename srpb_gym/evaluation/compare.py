@@ -16,9 +16,15 @@ from dataclasses import dataclass
 from typing import Any
 
 from srpb_gym.errors import InputError
-from srpb_gym.evaluation import stats
-from srpb_gym.evaluation.outdir import check_out_dir, describe_differences, differences, read_json
-from srpb_gym.evaluation.runner import EpisodeResult
+from srpb_gym.evaluation import figures, stats
+from srpb_gym.evaluation.data import EpisodeResult
+from srpb_gym.evaluation.outdir import (
+    check_out_dir,
+    describe_differences,
+    differences,
+    read_json,
+    write_json,
+)
 
 
 @dataclass
@@ -132,8 +138,6 @@ def compare_runs(
         text += "\n\n" + "\n".join(notes)
     if out is None:
         return text, []
-    from srpb_gym.evaluation.harness import write_json
-
     check_out_dir(out)
     files = [os.path.join(out, n) for n in ("episodes.csv", "summary.json", "config.json")]
     stats.write_episodes(files[0], merged)
@@ -173,8 +177,6 @@ def _label_planners(runs: list[Run], every: bool) -> list[EpisodeResult]:
 
 
 def _compare_bars(summary: stats.Summary, out: str) -> list[str]:
-    from srpb_gym.evaluation import figures
-
     try:
         figures.pyplot()
     except ImportError:

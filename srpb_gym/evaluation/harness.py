@@ -13,7 +13,6 @@ summary, tables and figures cover them all.
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import shlex
@@ -25,9 +24,14 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any
 
-from srpb_gym.evaluation import outdir, stats
-from srpb_gym.evaluation.runner import EpisodeResult, remove_unfinished, run_tasks, tasks_of
-from srpb_gym.evaluation.spec import EvalConfig, jsonable
+from srpb_gym import __version__
+from srpb_gym.evaluation import figures, outdir, stats
+from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, tasks_of
+from srpb_gym.evaluation.outdir import write_json
+from srpb_gym.evaluation.pool import remove_unfinished, run_tasks
+from srpb_gym.metrics import MetricParams, SRPBMetricWarning
+from srpb_gym.metrics.io_npz import load_record
+from srpb_gym.scenarios import load_scenario
 
 VERSIONED: tuple[tuple[str, str], ...] = (
     ("srpb-gym", "srpb-gym"), ("numpy", "numpy"), ("scipy", "scipy"), ("numba", "numba"),
@@ -141,13 +145,6 @@ def _write_summary(outcome: RunOutcome) -> list[str]:
     return [path, *stats.write_tables(summary, out)]
 
 
-def write_json(path: str, doc: Any) -> None:
-    """``doc`` as indented JSON (non-finite floats become ``null``)."""
-    with open(path, "w", encoding="utf-8") as f:
-        json.dump(jsonable(doc), f, indent=2, allow_nan=False)
-        f.write("\n")
-
-
 def write_run_info(config: EvalConfig) -> tuple[list[str], dict[str, Any]]:
     """``config.json``, ``command.txt`` and ``versions.json``; returns their paths and the
     resolved configuration."""
@@ -235,8 +232,6 @@ def versions() -> dict[str, str]:
             out[key] = metadata.version(dist)
         except metadata.PackageNotFoundError:
             if key == "srpb-gym":
-                from srpb_gym import __version__
-
                 out[key] = __version__
     return out | cpu()
 
@@ -246,8 +241,6 @@ def draw_figures(
 ) -> list[str]:
     """Trajectory plots per (env, planner) and a bar chart per env (``resolved``: the
     resolved configuration); skipped with a warning when matplotlib is missing."""
-    from srpb_gym.evaluation import figures
-
     try:
         figures.pyplot()
     except ImportError as exc:
@@ -283,11 +276,6 @@ def draw_figures(
 def _trajectories(
     config: EvalConfig, env: dict, rows: list, title: str, path: str, scenario: str | None = None
 ) -> None:
-    from srpb_gym.evaluation import figures
-    from srpb_gym.metrics import MetricParams, SRPBMetricWarning
-    from srpb_gym.metrics.io_npz import load_record
-    from srpb_gym.scenarios import load_scenario
-
     records = [load_record(os.path.join(config.out, r.record)) for r in rows]
     walls = load_scenario(scenario or env.get("scenario_file") or env["scenario"]).walls
     params = env["metric_params"][scenario] if scenario else env["metric_params"]

@@ -7,7 +7,7 @@ learned policy is one model shared by every robot (its normalisation statistics 
 to each robot's observation, as for one robot). Each robot's ``act`` is timed and handed
 over with ``set_planning_time({agent: seconds})``. A robot leaves when it terminates or is
 truncated, with its SRPB episode metrics in its last info: one
-:class:`~srpb_gym.evaluation.runner.EpisodeResult` per robot.
+:class:`~srpb_gym.evaluation.data.EpisodeResult` per robot.
 """
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ import time
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from srpb_gym.evaluation.spec import EvalConfig, PlannerSpec
+from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, PlannerSpec, Task
+from srpb_gym.evaluation.figures import VideoWriter
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.planners import Planner
 
@@ -107,16 +108,14 @@ def make_pair(config: EvalConfig, env_id: str, planner: int) -> tuple[Any, dict[
     return par, planners
 
 
-def run_multi_task(config: EvalConfig, pair: tuple[Any, dict[str, Planner]], task: Any) -> list:
+def run_multi_task(
+    config: EvalConfig, pair: tuple[Any, dict[str, Planner]], task: Task
+) -> list[EpisodeResult]:
     """Run one multi-robot episode of ``task``; one result per robot, in robot order."""
-    from srpb_gym.evaluation.runner import EpisodeResult
-
     par, planners = pair
     name = config.planners[task.planner].name
     video = None
     if task.index < config.video:
-        from srpb_gym.evaluation.figures import VideoWriter
-
         stem = os.path.join(config.out, "videos", f"{task.env}_{name}_seed{task.seed}")
         video = VideoWriter(stem, par.metadata.get("render_fps", 10), config.video_stride)
     finished = run_multi_episode(par, planners, task.seed, None if video is None else video.film)

@@ -18,8 +18,7 @@ from typing import Any
 
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation import stats
-from srpb_gym.evaluation.runner import EpisodeResult, Task, tasks_of
-from srpb_gym.evaluation.spec import EvalConfig, jsonable
+from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, Task, jsonable, tasks_of
 
 RUN_FILES: tuple[str, ...] = ("config.json", "command.txt", "versions.json")
 RESUME_FREE: frozenset[str] = frozenset(
@@ -78,6 +77,13 @@ def read_json(path: str) -> Any:
         raise InputError("not a UTF-8 text file: a binary file?", path) from None
     except json.JSONDecodeError as exc:
         raise InputError(f"not valid JSON: {exc.msg}", path, exc.lineno) from None
+
+
+def write_json(path: str, doc: Any) -> None:
+    """``doc`` as indented JSON (non-finite floats become ``null``)."""
+    with open(path, "w", encoding="utf-8") as f:
+        json.dump(jsonable(doc), f, indent=2, allow_nan=False)
+        f.write("\n")
 
 
 def differences(stored: Any, now: Any, key: str = "") -> Iterator[tuple[str, Any, Any]]:

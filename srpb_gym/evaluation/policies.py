@@ -8,7 +8,9 @@ against every environment's, so that a run never evaluates a model on observatio
 was not trained for (a model that records its observation settings observes with them:
 :class:`~srpb_gym.planners.learned.LearnedPolicy`; the note says so where they differ
 from the environments').
-stable-baselines3 and torch are imported only here, and only when a policy is given.
+Every call into :mod:`srpb_gym.models` and the model-file helpers of
+:mod:`srpb_gym.planners.learned` of the evaluation is made here. stable-baselines3 and
+torch are imported (by those modules) only when a policy is given.
 """
 
 from __future__ import annotations
@@ -16,14 +18,22 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from srpb_gym.errors import InputError
-from srpb_gym.evaluation.spec import EvalConfig, PlannerSpec
+from srpb_gym.evaluation.data import EvalConfig, PlannerSpec
+from srpb_gym.models import MODEL_FILE, find_model, model_names
 from srpb_gym.planners import Planner
-
-if TYPE_CHECKING:
-    from srpb_gym.planners.learned import LearnedPolicy
+from srpb_gym.planners.learned import (
+    ALGORITHMS,
+    LearnedPolicy,
+    PolicyFileError,
+    VecNormalizeError,
+    find_vecnormalize,
+    lidar_beams_of,
+    observation_config_of,
+    settings_text,
+    vecnormalize_candidates,
+)
 
 
 def policy_specs(
@@ -42,8 +52,6 @@ def policy_specs(
     algorithm and which normalisation statistics it uses."""
     if not paths:
         return []
-    from srpb_gym.planners.learned import ALGORITHMS
-
     if algo is not None and algo.upper() not in ALGORITHMS:
         raise InputError(f"choose one of: {', '.join(ALGORITHMS)}", key="--policy-algo")
     if vecnormalize is not None and vecnormalize.lower() == "none":
@@ -80,8 +88,6 @@ def _model_file(given: str) -> tuple[str, tuple[str, ...]]:
     name (that name alone). A name that is none of them is returned as it is, for
     :func:`load_policy` to report. The file is found as ``--init`` and
     ``pretrain_teachers`` find theirs (:func:`srpb_gym.models.find_model`)."""
-    from srpb_gym.models import MODEL_FILE, find_model
-
     folder = os.path.isdir(given)
     if folder and not os.path.isfile(os.path.join(given, MODEL_FILE)):
         raise InputError(f"a folder without {MODEL_FILE}: give the model file (.zip) of "
@@ -113,8 +119,6 @@ def _unique_names(parts: Sequence[Sequence[str]]) -> list[str]:
 def _policy_spec(
     name: str, path: str, algo: str | None, vecnormalize: str | None, env_ids: Sequence[str]
 ) -> PlannerSpec:
-    from srpb_gym.planners.learned import find_vecnormalize, vecnormalize_candidates
-
     searched: tuple[str, ...] = ()
     if vecnormalize == "auto":
         searched = tuple(str(p) for p in vecnormalize_candidates(path, env_ids))
@@ -134,8 +138,6 @@ def _normalisation(spec: PlannerSpec) -> str:
 
 def _observes(policy: LearnedPolicy, probe: EvalConfig) -> str:
     """How the policy observes, when its recorded settings differ from the environments'."""
-    from srpb_gym.planners.learned import observation_config_of, settings_text
-
     own = policy.observation_config
     env = probe.make_env(probe.envs[0], render=False)
     try:
@@ -151,8 +153,6 @@ def _observes(policy: LearnedPolicy, probe: EvalConfig) -> str:
 
 
 def _check_spaces(policy: LearnedPolicy, probe: EvalConfig) -> None:
-    from srpb_gym.planners.learned import lidar_beams_of
-
     for env_id in probe.envs:
         env = probe.make_env(env_id, render=False)
         try:
@@ -166,12 +166,8 @@ def _check_spaces(policy: LearnedPolicy, probe: EvalConfig) -> None:
 def load_policy(spec: PlannerSpec) -> LearnedPolicy:
     """Build a learned policy, turning every failure into an :class:`InputError` naming
     the file at fault (the model or its normalisation statistics)."""
-    from srpb_gym.planners.learned import PolicyFileError, VecNormalizeError
-
     path = str(spec.policy)
     if not os.path.isfile(path):
-        from srpb_gym.models import model_names
-
         names = model_names()
         shipped = f"shipped models: {', '.join(names)}" if names else "no models are shipped"
         raise InputError(f"no such file or shipped model ({shipped})", path, key="--policy")

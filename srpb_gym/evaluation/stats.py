@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from srpb_gym.errors import InputError
-from srpb_gym.evaluation.runner import EpisodeResult
+from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
 from srpb_gym.metrics.io_native import read_text
 
