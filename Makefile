@@ -31,7 +31,7 @@ demo: $(DEMO_STAMP)
 	$(BIN)/srpb-gym eval
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n auto
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

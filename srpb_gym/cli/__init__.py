@@ -34,7 +34,7 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from srpb_gym import __version__
+from srpb_gym._version import __version__
 from srpb_gym.cli.common import PROG
 from srpb_gym.cli.compare import add_compare_command, run_compare
 from srpb_gym.cli.eval import add_eval_command, run_eval

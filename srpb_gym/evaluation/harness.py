@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Any
 
-from srpb_gym import __version__
+from srpb_gym._version import __version__
 from srpb_gym.evaluation import figures, outdir, stats
 from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, tasks_of
 from srpb_gym.evaluation.outdir import write_json
