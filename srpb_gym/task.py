@@ -3,7 +3,7 @@
 A :class:`RobotTask` owns everything that concerns one robot and no Gym API: decoding its
 action into a body-frame command, the goal rule, the collision latch, the reward, the
 observation, the step info, finishing the episode (the SRPB metrics, the recorded logs)
-and the :class:`~srpb_gym.planners.base.Knowledge` handed to classical planners. The
+and the :class:`~srpb_gym.knowledge.Knowledge` handed to classical planners. The
 Gymnasium environment is a thin adapter over one simulation and one task; the PettingZoo
 environment over one simulation and a task per robot.
 

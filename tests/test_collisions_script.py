@@ -1,4 +1,4 @@
-"""training/collisions.py: what a collision was, its speed and the rate per 100 s."""
+"""scripts/collisions.py: what a collision was, its speed and the rate per 100 s."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from training import collisions
+from scripts import collisions
 
 
 def _world(flags, people_xy=((1.0, 0.0), (5.0, 5.0)), people_velocity=((0.3, 0.4), (0, 0))):

@@ -43,7 +43,7 @@ def test_pretrain_clones_the_planner_and_sets_the_statistics():
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from srpb_gym.training.config import TrainConfig
+    from srpb_gym.training.config import Pretraining, TrainConfig
     from srpb_gym.training.pretrain import pretrain
     from srpb_gym.training.run import make_vec_env
 
@@ -53,9 +53,9 @@ def test_pretrain_clones_the_planner_and_sets_the_statistics():
     model = PPO("MlpPolicy", venv, seed=0, **{**config.ppo_kwargs(), "n_steps": 64})
     demos = collect("SRPB-Corridor-v0", {"reward": "task"}, "go-to-goal", 2, noise=0.0)
     before, _ = model.predict(demos.obs, deterministic=True)
-    report = pretrain(model, venv, "SRPB-Corridor-v0", {"reward": "task"}, planner="go-to-goal",
-                      episodes=2, epochs=40, noise=0.0, log_std=-1.5, gamma=0.99,
-                      log=lambda _: None)  # fmt: skip
+    settings = Pretraining(planner="go-to-goal", episodes=2, epochs=40, noise=0.0, log_std=-1.5)
+    report = pretrain(model, venv, "SRPB-Corridor-v0", {"reward": "task"}, settings,
+                      gamma=0.99, log=lambda _: None)  # fmt: skip
     assert report["demo_episodes"] == 2 and report["demo_steps"] > 20
     assert venv.obs_rms.count > report["demo_steps"] and venv.ret_rms.count > 1
     np.testing.assert_allclose(model.policy.log_std.detach().numpy(), -1.5)
@@ -101,7 +101,7 @@ def test_a_teacher_whose_scenario_was_never_drawn_is_reported():
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from srpb_gym.training.config import TrainConfig
+    from srpb_gym.training.config import Pretraining, TrainConfig
     from srpb_gym.training.pretrain import pretrain
     from srpb_gym.training.run import make_vec_env
 
@@ -110,9 +110,10 @@ def test_a_teacher_whose_scenario_was_never_drawn_is_reported():
     venv = VecNormalize(make_vec_env("SRPB-Mix-v0", config, kwargs, 0))
     model = PPO("MlpPolicy", venv, seed=0, **config.ppo_kwargs())
     lines: list[str] = []
-    report = pretrain(model, venv, "SRPB-Mix-v0", kwargs, planner="go-to-goal", episodes=2,
-                      epochs=1, noise=0.0, log_std=-1.0, gamma=0.99, log=lines.append,
-                      teachers={"crossing": "dwa"})  # fmt: skip
+    settings = Pretraining(planner="go-to-goal", teachers={"crossing": "dwa"}, episodes=2,
+                           epochs=1, noise=0.0, log_std=-1.0)  # fmt: skip
+    report = pretrain(model, venv, "SRPB-Mix-v0", kwargs, settings, gamma=0.99,
+                      log=lines.append)  # fmt: skip
     venv.close()
     assert report["teachers_without_episodes"] == ["crossing"]
     assert list(report["demo_by_scenario"]) == ["corridor"]
@@ -225,7 +226,8 @@ def test_loading_a_model_leaves_the_global_generators_alone(tmp_path):
 
     from srpb_gym.evaluation.harness import run_evaluation
     from srpb_gym.evaluation.spec import resolve_config
-    from srpb_gym.planners.learned import LearnedPolicy, global_rngs_kept
+    from srpb_gym.models import global_rngs_kept
+    from srpb_gym.planners.learned import LearnedPolicy
 
     def states():
         return torch.get_rng_state(), np.random.get_state()[1].copy(), random.getstate()
@@ -287,7 +289,7 @@ def test_dagger_rounds_let_the_clone_drive_on_later_seeds(monkeypatch):
     from stable_baselines3.common.vec_env import VecNormalize
 
     from srpb_gym.training import pretrain as module
-    from srpb_gym.training.config import TrainConfig
+    from srpb_gym.training.config import Pretraining, TrainConfig
     from srpb_gym.training.run import make_vec_env
 
     calls = []
@@ -305,9 +307,10 @@ def test_dagger_rounds_let_the_clone_drive_on_later_seeds(monkeypatch):
     venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, kwargs, 0))
     model = PPO("MlpPolicy", venv, seed=0, **config.ppo_kwargs())
     lines: list[str] = []
-    report = module.pretrain(model, venv, "SRPB-Corridor-v0", kwargs, planner="go-to-goal",
-                             episodes=2, epochs=2, noise=0.0, log_std=-1.0, gamma=0.99,
-                             log=lines.append, dagger_rounds=2, dagger_episodes=3)  # fmt: skip
+    settings = Pretraining(planner="go-to-goal", episodes=2, epochs=2, noise=0.0, log_std=-1.0,
+                           dagger_rounds=2, dagger_episodes=3)  # fmt: skip
+    report = module.pretrain(model, venv, "SRPB-Corridor-v0", kwargs, settings, gamma=0.99,
+                             log=lines.append)  # fmt: skip
     # the teacher's 2 episodes, then two rounds of 3 driven by the clone, on the next seeds
     assert [(n, seed) for n, seed, _, _ in calls] == [
         (2, module.DEMO_SEED), (3, module.DEMO_SEED + 2), (3, module.DEMO_SEED + 5)

@@ -15,7 +15,7 @@ from srpb_gym.errors import InputError
 from srpb_gym.pettingzoo_env import SRPBParallelEnv
 from srpb_gym.reward import TERMS, RewardGameableWarning, load_preset, resolve_weights
 from srpb_gym.scenarios import load_scenario
-from srpb_gym.training.run import check_env_args
+from srpb_gym.training.checks import check_env_args
 
 SCENARIO = """\
 name: weighted

@@ -13,7 +13,7 @@ import pytest
 
 import srpb_gym  # noqa: F401
 from srpb_gym.models import card, model_names, model_path
-from srpb_gym.training.run import eval_env_ids
+from srpb_gym.training.targets import eval_env_ids
 from training.retrain_models import MODELS
 from training.ship import _trained_weights
 
@@ -36,13 +36,9 @@ def test_unknown_names_are_not_models():
 @pytest.mark.parametrize("name", model_names())
 def test_model_loads_matches_spaces_and_acts(name):
     pytest.importorskip("stable_baselines3")
+    from srpb_gym.models import find_vecnormalize, observation_config_of, recorded_observation
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.planners.learned import (
-        LearnedPolicy,
-        find_vecnormalize,
-        observation_config_of,
-        recorded_observation,
-    )
+    from srpb_gym.planners.learned import LearnedPolicy
 
     facts = card(name)
     assert set(facts) >= CARD_KEYS and facts["name"] == name

@@ -288,22 +288,22 @@ def test_init_starts_from_a_trained_model(tmp_path):
     from stable_baselines3.common.vec_env import VecNormalize
 
     from srpb_gym.errors import InputError
+    from srpb_gym.models import OBSERVATION_RECORD, load_vecnormalize, resolve_model
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.planners.learned import OBSERVATION_RECORD, load_vecnormalize
-    from srpb_gym.training.run import _load_init, make_vec_env, resolve_init
+    from srpb_gym.training.run import load_init, make_vec_env
 
     small = {"n_timesteps": 256, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
              "net_arch": [16], "eval_freq": 0}  # fmt: skip
     config = resolve("SRPB-Corridor-v0", small)
     first = train("SRPB-Corridor-v0", config, preset="task", out=str(tmp_path / "a"),
                   progress=False, log=lambda line: None)  # fmt: skip
-    path, stats = resolve_init(first.out)  # a run folder
+    path, stats = resolve_model(first.out, "--init")  # a run folder
     assert path.endswith("model.zip") and stats is not None and stats.endswith(".pkl")
-    assert resolve_init(path) == (path, stats)  # the file itself
+    assert resolve_model(path, "--init") == (path, stats)  # the file itself
 
     venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, {"reward": "srpb"}, 1))
     model = PPO("MlpPolicy", venv, seed=1, **config.ppo_kwargs())
-    _load_init(model, venv, path, stats, ObservationConfig())
+    load_init(model, venv, path, stats, ObservationConfig())
     trained = PPO.load(path).policy.state_dict()
     for key, value in model.policy.state_dict().items():
         np.testing.assert_array_equal(value.numpy(), trained[key].numpy(), err_msg=key)
@@ -392,7 +392,7 @@ def test_init_starts_from_a_trained_model(tmp_path):
               out=str(tmp_path / "d"), progress=False, log=lambda line: None,
               init=first.out)  # fmt: skip
     with pytest.raises(InputError, match="no model file"):
-        resolve_init(str(tmp_path / "nothing"))
+        resolve_model(str(tmp_path / "nothing"), "--init")
 
 
 def test_mix_draw_weights_train_with_periodic_evaluation(tmp_path, capsys):

@@ -17,7 +17,7 @@ sys.path.insert(0, str(ROOT))
 
 import srpb_gym  # noqa: E402
 from srpb_gym.cli import main as cli_main  # noqa: E402
-from training.multi_robot import SharedPolicyVecEnv  # noqa: E402
+from srpb_gym.training.shared_policy import SharedPolicyVecEnv  # noqa: E402
 
 
 def make() -> srpb_gym.pettingzoo_env.SRPBParallelEnv:
@@ -62,7 +62,7 @@ def test_train_then_evaluate(tmp_path, capsys):
     assert {p.name for p in out.iterdir()} == {"model.zip", "vecnormalize.pkl", "run.json"}
     from stable_baselines3.common.save_util import load_from_zip_file
 
-    from srpb_gym.planners.learned import OBSERVATION_RECORD
+    from srpb_gym.models import OBSERVATION_RECORD
 
     data = load_from_zip_file(out / "model.zip", load_data=True)[0]
     assert data[OBSERVATION_RECORD]["lidar_encoding"] == "linear"  # what the robots observed

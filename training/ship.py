@@ -8,7 +8,7 @@ best/, and takes the better by the periodic evaluations' rule), evaluates it wit
 the ``srpb-gym eval`` harness on ``--episodes`` unseen seeds from ``--seed`` (100 from
 10000 by default; each scenario of the mixture for a model trained on SRPB-Mix-v0; the
 environments made with the run's env kwargs but those of training only, see
-:func:`srpb_gym.training.run.eval_setup`), and writes
+:func:`srpb_gym.training.targets.eval_setup`), and writes
 ``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
 training), ``card.json`` and ``card.md`` (environment id and version, reward preset and
 the weights it paid in each scenario, steps, wall time, machine, seed, command,
@@ -33,10 +33,11 @@ import yaml
 
 from srpb_gym.evaluation.harness import cpu, run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
+from srpb_gym.models import settings_text, stamp_observation
 from srpb_gym.observation import ObservationConfig
-from srpb_gym.planners.learned import settings_text, stamp_observation
 from srpb_gym.training.callbacks import eval_score, summarize_results
-from srpb_gym.training.run import eval_setup, reward_weights
+from srpb_gym.training.checks import reward_weights
+from srpb_gym.training.targets import eval_setup
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 TEST_SEED, TEST_EPISODES = 10_000, 100

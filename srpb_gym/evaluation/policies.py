@@ -21,19 +21,21 @@ from pathlib import Path
 
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EvalConfig, PlannerSpec
-from srpb_gym.models import MODEL_FILE, find_model, model_names
-from srpb_gym.planners import Planner
-from srpb_gym.planners.learned import (
+from srpb_gym.models import (
     ALGORITHMS,
-    LearnedPolicy,
+    MODEL_FILE,
     PolicyFileError,
     VecNormalizeError,
+    find_model,
     find_vecnormalize,
     lidar_beams_of,
+    model_names,
     observation_config_of,
     settings_text,
     vecnormalize_candidates,
 )
+from srpb_gym.planners import Planner
+from srpb_gym.planners.learned import LearnedPolicy
 
 
 def policy_specs(

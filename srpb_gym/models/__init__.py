@@ -1,6 +1,6 @@
-"""Pretrained policies shipped with srpb-gym, loadable by their short names.
+"""Trained models: the shipped ones, loadable by their short names, and every model file.
 
-Each model is a folder ``srpb_gym/models/<name>/`` holding ``model.zip`` (a
+Each shipped model is a folder ``srpb_gym/models/<name>/`` holding ``model.zip`` (a
 stable-baselines3 PPO model), ``vecnormalize.pkl`` (its observation statistics),
 ``card.md`` (its model card: environment id and version, reward preset and the weights
 of each scenario, steps, wall time, machine, seed, command, results) and ``card.json``
@@ -9,53 +9,63 @@ of each scenario, steps, wall time, machine, seed, command, results) and ``card.
 :func:`model_names` lists those shipped.
 
 ``srpb-gym eval --policy ppo-corridor-srpb`` takes a short name wherever it takes a model
-file; ``srpb-gym models`` lists them. Loading a model needs the ``train`` extra
-(stable-baselines3 and torch); listing does not.
+file, and so do ``srpb-gym train --init`` and the teachers of a warm start. Loading a
+model needs the ``train`` extra (stable-baselines3 and torch); listing and finding do not.
+
+The modules, each importable without stable-baselines3 and torch:
+
+* :mod:`srpb_gym.models.shipped`: the shipped models (:func:`model_names`,
+  :func:`model_path`, :func:`card`);
+* :mod:`srpb_gym.models.files`: the files a name, path or run folder names
+  (:func:`find_model`, :func:`resolve_model`) and their normalisation statistics
+  (:func:`find_vecnormalize`);
+* :mod:`srpb_gym.models.loading`: loading a model and its statistics
+  (:func:`load_model`, :func:`load_vecnormalize`) and their errors;
+* :mod:`srpb_gym.models.record`: the observation settings a model was trained with
+  (:data:`OBSERVATION_RECORD`).
 """
 
 from __future__ import annotations
 
-import json
-import os
-from importlib.resources import files
-from pathlib import Path
-from typing import Any
+from srpb_gym.models.files import (
+    VECNORMALIZE,
+    find_model,
+    find_vecnormalize,
+    resolve_model,
+    vecnormalize_candidates,
+)
+from srpb_gym.models.loading import (
+    ALGORITHMS,
+    PolicyFileError,
+    VecNormalizeError,
+    detect_algorithm,
+    global_rngs_kept,
+    load_model,
+    load_vecnormalize,
+    model_data,
+    model_steps,
+)
+from srpb_gym.models.record import (
+    OBSERVATION_RECORD,
+    describe_space,
+    lidar_beams_of,
+    observation_config_of,
+    observation_mismatch,
+    read_record,
+    record_observation,
+    recorded_observation,
+    settings_mismatch,
+    settings_text,
+    spaces_differ,
+    stamp_observation,
+)
+from srpb_gym.models.shipped import MODEL_FILE, card, model_names, model_path
 
-__all__ = ["card", "find_model", "model_names", "model_path"]
-
-MODEL_FILE = "model.zip"
-
-
-def _root() -> Any:
-    return files("srpb_gym.models")
-
-
-def model_names() -> list[str]:
-    """Short names of the shipped models (folders holding a ``model.zip``)."""
-    return sorted(p.name for p in _root().iterdir()
-                  if p.is_dir() and (p / MODEL_FILE).is_file())  # fmt: skip
-
-
-def model_path(name: str) -> Path | None:
-    """The ``model.zip`` of the shipped model ``name``, or ``None`` if there is none."""
-    if not isinstance(name, str) or "/" in name or "\\" in name or name.startswith("."):
-        return None
-    path = _root() / name / MODEL_FILE
-    return Path(str(path)) if path.is_file() else None
-
-
-def find_model(given: str) -> str | None:
-    """The ``model.zip`` that ``given`` names: a model file, a run folder holding
-    ``model.zip``, or a shipped model's name; ``None`` if it names none."""
-    path = os.path.join(given, MODEL_FILE) if os.path.isdir(given) else given
-    if os.path.isfile(path):
-        return path
-    shipped = model_path(given)
-    return None if shipped is None else str(shipped)
-
-
-def card(name: str) -> dict[str, Any]:
-    """The facts of a shipped model's card (``card.json``); ``KeyError`` for an unknown name."""
-    if name not in model_names():
-        raise KeyError(f"no shipped model {name!r}; shipped: {', '.join(model_names()) or 'none'}")
-    return json.loads((_root() / name / "card.json").read_text(encoding="utf-8"))
+__all__ = ["ALGORITHMS", "MODEL_FILE", "OBSERVATION_RECORD", "VECNORMALIZE", "PolicyFileError",
+           "VecNormalizeError", "card", "describe_space", "detect_algorithm", "find_model",
+           "find_vecnormalize", "global_rngs_kept", "lidar_beams_of", "load_model",
+           "load_vecnormalize", "model_data", "model_names", "model_path", "model_steps",
+           "observation_config_of", "observation_mismatch", "read_record",
+           "record_observation", "recorded_observation", "resolve_model", "settings_mismatch",
+           "settings_text", "spaces_differ", "stamp_observation",
+           "vecnormalize_candidates"]  # fmt: skip

@@ -4,7 +4,7 @@
 acceleration limits in one compiled kernel and measures each trajectory's clearance from
 the static map and the lidar points and its gap to the tracked people predicted at constant
 velocity. :func:`scan_points` and :func:`people_array` build those obstacles from the
-robot's :class:`~srpb_gym.planners.base.Knowledge`.
+robot's :class:`~srpb_gym.knowledge.Knowledge`.
 """
 
 from __future__ import annotations

@@ -28,7 +28,10 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from tqdm import tqdm
 
+from srpb_gym.evaluation import harness, spec
 from srpb_gym.metrics.episode import METRIC_NAMES
+from srpb_gym.models.files import VECNORMALIZE
+from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.reward import TERMS
 
 #: the seed of the first evaluation episode: far from the seeds of the test sets
@@ -191,19 +194,16 @@ class PeriodicEvalCallback(BaseCallback):
 
     def evaluate(self) -> dict[str, dict[str, float]]:
         """Checkpoint and evaluate now; returns the figures by environment id."""
-        from srpb_gym.evaluation.harness import run_evaluation
-        from srpb_gym.evaluation.spec import resolve_config
-
         step = self.num_timesteps
         ckpt = os.path.join(self.run_dir, "checkpoints", f"step_{step:09d}")
         save_checkpoint(self.model, ckpt)
         folder = os.path.join(self.run_dir, "eval", f"step_{step:09d}")
-        config = resolve_config(
-            self.env_ids, policies=[os.path.join(ckpt, "model.zip")], episodes=self.episodes,
+        config = spec.resolve_config(
+            self.env_ids, policies=[os.path.join(ckpt, MODEL_FILE)], episodes=self.episodes,
             seed=EVAL_SEED, out=folder,
             warmup=0, log=None, env_kwargs=self.env_kwargs,
         )  # fmt: skip
-        outcome = run_evaluation(config, log=self.log, progress=self.progress)
+        outcome = harness.run_evaluation(config, log=self.log, progress=self.progress)
         if outcome.interrupted:  # Ctrl-C or SIGTERM during it: stop training, as it would
             shutil.rmtree(folder, ignore_errors=True)  # a cut-short evaluation scores nothing
             raise KeyboardInterrupt("during a periodic evaluation")
@@ -286,7 +286,7 @@ def summarize_results(results: Sequence[Any]) -> dict[str, dict[str, float]]:
 def save_checkpoint(model: Any, folder: str) -> None:
     """``model.zip`` and (when training normalises) ``vecnormalize.pkl`` in ``folder``."""
     os.makedirs(folder, exist_ok=True)
-    model.save(os.path.join(folder, "model.zip"))
+    model.save(os.path.join(folder, MODEL_FILE))
     venv = model.get_vec_normalize_env()
     if venv is not None:
-        venv.save(os.path.join(folder, "vecnormalize.pkl"))
+        venv.save(os.path.join(folder, VECNORMALIZE))

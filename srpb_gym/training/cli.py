@@ -10,7 +10,9 @@ import sys
 from typing import Any
 
 from srpb_gym.errors import InputError
+from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.training.config import parse_overrides, resolve
+from srpb_gym.training.targets import eval_setup
 
 INSTALL_HINT = (
     'training needs stable-baselines3, torch and tensorboard: pip install "srpb-gym[train]"'
@@ -73,6 +75,7 @@ def run_train(args: argparse.Namespace) -> int:
     if args.max_minutes is not None and not args.max_minutes > 0:
         raise InputError(f"must be > 0, got {args.max_minutes}", key="--max-minutes")
     try:
+        # deferred: run imports stable_baselines3 and torch (the train extra), optional here
         from srpb_gym.training.run import train
     except ImportError as exc:
         raise InputError(f"{INSTALL_HINT} ({exc})") from None
@@ -92,9 +95,6 @@ def eval_command(env_id: str, env_kwargs: dict[str, Any], out: str) -> str:
     model when there is none) on what its periodic evaluations run (the mixture's
     scenarios, a scenario file, the id itself), with the environment's keyword arguments
     that are not training's alone."""
-    from srpb_gym.models import MODEL_FILE
-    from srpb_gym.training.run import eval_setup
-
     env_ids, kwargs = eval_setup(env_id, env_kwargs)
     best = os.path.join(out, "best")
     policy = best if os.path.isfile(os.path.join(best, MODEL_FILE)) else out

@@ -21,10 +21,13 @@ from typing import Any
 
 from srpb_gym.config import from_dict, parse_overrides
 from srpb_gym.errors import InputError
+from srpb_gym.models.files import find_model
+from srpb_gym.models.shipped import model_names
+from srpb_gym.planners import PLANNERS
 from srpb_gym.yaml_io import read_file, read_yaml
 
-__all__ = ["DEFAULT_KEY", "TrainConfig", "config_file", "load_entries", "parse_overrides",
-           "resolve", "rl_zoo_document", "rl_zoo_entry"]  # fmt: skip
+__all__ = ["DEFAULT_KEY", "Pretraining", "TrainConfig", "config_file", "load_entries",
+           "parse_overrides", "resolve", "rl_zoo_document", "rl_zoo_entry"]  # fmt: skip
 
 DEFAULT_KEY = "default"
 VEC_ENVS = ("subproc", "dummy")
@@ -36,6 +39,26 @@ DEMO_EPISODES_MAX = 1_000_000
 #: the keys passed to ``stable_baselines3.PPO`` as they are
 PPO_KEYS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda",
             "clip_range", "ent_coef", "vf_coef", "max_grad_norm")  # fmt: skip
+
+
+#: the prefix of the :class:`TrainConfig` keys that make up its :class:`Pretraining`
+PRETRAIN_PREFIX = "pretrain_"
+
+
+@dataclass(frozen=True)
+class Pretraining:
+    """The settings of a warm start (:func:`srpb_gym.training.pretrain.pretrain`): the
+    ``pretrain_*`` keys of :class:`TrainConfig` without their prefix, which documents and
+    checks them (:attr:`TrainConfig.pretraining`)."""
+
+    planner: str = ""
+    teachers: Mapping[str, str] = dataclasses.field(default_factory=dict)
+    episodes: int = 100
+    epochs: int = 30
+    noise: float = 0.1
+    log_std: float = -1.0
+    dagger_rounds: int = 0
+    dagger_episodes: int = 200
 
 
 @dataclass(frozen=True)
@@ -147,6 +170,15 @@ class TrainConfig:
                              f"{self.n_steps * self.n_envs} steps of one rollout "
                              "(n_steps x n_envs)")  # fmt: skip
 
+    @property
+    def pretraining(self) -> Pretraining | None:
+        """The settings of the warm start, or ``None`` when there is none (no teacher in
+        ``pretrain_planner`` or ``pretrain_teachers``)."""
+        if not (self.pretrain_planner or self.pretrain_teachers):
+            return None
+        return Pretraining(**{f.name: getattr(self, PRETRAIN_PREFIX + f.name)
+                              for f in dataclasses.fields(Pretraining)})  # fmt: skip
+
     def ppo_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``stable_baselines3.PPO`` (without env, seed, logging)."""
         from torch import nn
@@ -167,9 +199,6 @@ class TrainConfig:
 
 def _check_teacher(name: str, teacher: str) -> None:
     """A teacher of the warm start: a planner's name, a shipped model or a model file."""
-    from srpb_gym.models import find_model, model_names
-    from srpb_gym.planners import PLANNERS
-
     if teacher in PLANNERS or find_model(teacher) is not None:
         return
     raise ValueError(f"{name}: {teacher!r} is no planner ({', '.join(sorted(PLANNERS))}), "

@@ -46,7 +46,13 @@ import gymnasium as gym
 import numpy as np
 
 from srpb_gym.errors import InputError
+from srpb_gym.evaluation.policies import load_policy
+from srpb_gym.evaluation.spec import PlannerSpec
+from srpb_gym.models.files import resolve_model
+from srpb_gym.models.record import lidar_beams_of
+from srpb_gym.planners import PLANNERS, make_planner
 from srpb_gym.planners.base import Planner
+from srpb_gym.training.config import Pretraining
 
 #: first seed of the demonstration episodes (training: the run's seed; periodic
 #: evaluation: 1,000,000; tests of shipped models: 10,000)
@@ -91,17 +97,10 @@ def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> P
     (a shipped model's name, a model file or a run folder holding ``model.zip``, with its
     observation statistics), checked to act on ``env``'s spaces. Failures are an
     :class:`InputError` naming ``key``."""
-    from srpb_gym.planners import PLANNERS, make_planner
-
     if teacher in PLANNERS:
         return make_planner(teacher)
-    from srpb_gym.evaluation.policies import load_policy
-    from srpb_gym.evaluation.spec import PlannerSpec
-    from srpb_gym.planners.learned import lidar_beams_of
-    from srpb_gym.training.run import resolve_init
-
     try:
-        path, vecnormalize = resolve_init(teacher)
+        path, vecnormalize = resolve_model(teacher, key)
         policy = load_policy(PlannerSpec(name=teacher, policy=path, vecnormalize=vecnormalize))
         policy.check_spaces(env.observation_space, env.action_space, lidar_beams_of(env))
     except InputError as exc:
@@ -202,22 +201,24 @@ def running_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.
     return out
 
 
-def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any], *,
-             planner: str, episodes: int, epochs: int, noise: float, log_std: float,
-             gamma: float, log: Callable[[str], None] = print,
-             teachers: Mapping[str, str] | None = None, dagger_rounds: int = 0,
-             dagger_episodes: int = 200) -> dict[str, Any]:  # fmt: skip
-    """Warm-start ``model`` (an SB3 ``PPO``) and ``venv`` (its ``VecNormalize``, or any
-    other VecEnv when observations are not normalised) from the demonstrations of
-    ``planner`` (and of ``teachers``, by scenario: :func:`collect`); then, for each of
-    ``dagger_rounds`` rounds, the clone drives ``dagger_episodes`` more episodes, the
-    teachers label every step, and the policy is fitted again on all the steps so far
-    (DAgger: the clone learns what to do in the states its own errors lead to, which the
-    teachers' demonstrations seldom show). Returns what happened (demonstration success
-    rate, by scenario too, the clone's success in each round, steps, final losses, wall
-    time)."""
+def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any],
+             settings: Pretraining, *, gamma: float,
+             log: Callable[[str], None] = print) -> dict[str, Any]:  # fmt: skip
+    """Warm-start ``model`` (an SB3 ``PPO`` discounting by ``gamma``) and ``venv`` (its
+    ``VecNormalize``, or any other VecEnv when observations are not normalised) from the
+    demonstrations of ``settings.planner`` (and of ``settings.teachers``, by scenario:
+    :func:`collect`); then, for each of ``settings.dagger_rounds`` rounds, the clone drives
+    ``settings.dagger_episodes`` more episodes, the teachers label every step, and the
+    policy is fitted again on all the steps so far (DAgger: the clone learns what to do in
+    the states its own errors lead to, which the teachers' demonstrations seldom show).
+    Returns what happened (demonstration success rate, by scenario too, the clone's success
+    in each round, steps, final losses, wall time)."""
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
+
+    planner, teachers, episodes = settings.planner, settings.teachers, settings.episodes
+    epochs, noise, log_std = settings.epochs, settings.noise, settings.log_std
+    dagger_rounds, dagger_episodes = settings.dagger_rounds, settings.dagger_episodes
 
     if dagger_rounds and dagger_episodes < 1:
         raise ValueError(f"dagger_episodes: must be >= 1 with DAgger rounds, got {dagger_episodes}")

@@ -220,8 +220,8 @@ def test_a_model_observes_as_it_was_trained(models, tmp_path, capsys):
     observes otherwise, said in the note; a model without a record takes the environment's."""
     from stable_baselines3 import PPO
 
+    from srpb_gym.models import record_observation
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.planners.learned import record_observation
 
     model = PPO.load(models / "ppo.zip", device="cpu")
     record_observation(model, ObservationConfig(lidar_encoding="log"))
@@ -258,8 +258,8 @@ def test_a_model_observes_as_it_was_trained(models, tmp_path, capsys):
 
 
 def test_observation_records_are_compared_setting_by_setting():
+    from srpb_gym.models import observation_mismatch
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.planners.learned import observation_mismatch
 
     default = ObservationConfig()
     assert observation_mismatch(None, default) is None
@@ -277,8 +277,8 @@ def test_observation_records_are_compared_setting_by_setting():
 def test_a_model_without_a_record_is_stamped_once(models, tmp_path):
     from stable_baselines3 import PPO
 
+    from srpb_gym.models import OBSERVATION_RECORD, PolicyFileError, stamp_observation
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.planners.learned import OBSERVATION_RECORD, PolicyFileError, stamp_observation
 
     path = tmp_path / "model.zip"
     shutil.copy(models / "ppo.zip", path)
@@ -294,8 +294,9 @@ def test_a_recorded_model_needs_as_many_lidar_beams_as_its_sectors(models, tmp_p
     """Refused before the first episode, naming the model and its recorded settings."""
     from stable_baselines3 import PPO
 
+    from srpb_gym.models import record_observation
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.planners.learned import LearnedPolicy, record_observation
+    from srpb_gym.planners.learned import LearnedPolicy
 
     model = PPO.load(models / "ppo.zip", device="cpu")
     record_observation(model, ObservationConfig())  # 30 sectors

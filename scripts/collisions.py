@@ -1,7 +1,7 @@
 """How planners collide: every collision of their episodes, with what the robot touched and
 how fast it drove just before, and each planner's collisions per 100 s of episode time.
 
-    python -m training.collisions --env SRPB-Crowd-v0 --planner dwa \\
+    python scripts/collisions.py --env SRPB-Crowd-v0 --planner dwa \\
         --policy ppo-crowd-task ppo-crowd-srpb --episodes 100 --seed 10000
 
 Planners, policies (files or shipped names) and ``--env-kwargs`` are resolved as ``srpb-gym
@@ -33,7 +33,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from srpb_gym.config import parse_overrides
 from srpb_gym.errors import InputError
+from srpb_gym.evaluation.spec import resolve_config, stderr_log
 
 KINDS = ("wall", "person", "robot")  # the columns of the world's collision flags, in order
 
@@ -134,10 +136,7 @@ def report(summary: Summary, fast: float, stopped: float) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from srpb_gym.config import parse_overrides
-    from srpb_gym.evaluation.spec import resolve_config, stderr_log
-
-    parser = argparse.ArgumentParser(prog="python -m training.collisions",
+    parser = argparse.ArgumentParser(prog="python scripts/collisions.py",
                                      description=__doc__.split("\n\n")[0])  # fmt: skip
     parser.add_argument("--env", default="SRPB-Crowd-v0", help="a registered id or scenario file")
     parser.add_argument("--planner", nargs="*", default=[], help="registered planners")
@@ -164,7 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 summary = run_planner(config, config.envs[0], spec, args.window)
                 print("\n".join(report(summary, args.fast, args.stopped)), flush=True)
     except InputError as exc:
-        print(f"python -m training.collisions: error: {exc}", file=sys.stderr)
+        print(f"python scripts/collisions.py: error: {exc}", file=sys.stderr)
         return 2
     return 0
 

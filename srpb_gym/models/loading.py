@@ -1,0 +1,216 @@
+"""Loading a stable-baselines3 model file and its ``VecNormalize`` statistics.
+
+:func:`load_model` loads a model on the CPU, its algorithm read from the file
+(:func:`detect_algorithm`), leaving the global random generators as they were;
+:func:`load_vecnormalize` loads the statistics in evaluation mode. stable-baselines3 and
+torch come from the ``train`` extra and are imported only when a file is loaded, so this
+module imports without them; reading a file's saved attributes (:func:`model_data`) needs
+neither.
+
+Failures are one line naming the file: :class:`PolicyFileError` for a model that cannot be
+loaded, :class:`VecNormalizeError` for a normalisation file that cannot be used.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pickle
+import zipfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import Any
+
+import numpy as np
+
+INSTALL_HINT = 'pip install "srpb-gym[train]"'
+ALGORITHMS: tuple[str, ...] = ("PPO", "A2C", "SAC", "TD3", "DDPG", "DQN")
+"""stable-baselines3 algorithms a model file may hold (:func:`detect_algorithm`)."""
+
+_POLICY_MODULES = {
+    "stable_baselines3.sac.policies": "SAC",
+    "stable_baselines3.td3.policies": "TD3",
+    "stable_baselines3.dqn.policies": "DQN",
+}
+
+
+class PolicyFileError(ValueError):
+    """A model file that cannot be loaded: ``path`` and ``reason`` (one line); ``str()``
+    gives ``path: reason``."""
+
+    def __init__(self, path: str | os.PathLike[str], reason: str) -> None:
+        self.path, self.reason = os.fspath(path), reason
+        super().__init__(f"{self.path}: {reason}")
+
+
+class VecNormalizeError(PolicyFileError):
+    """A ``VecNormalize`` file that cannot be used (``path``: that file)."""
+
+
+def import_sb3() -> Any:
+    """The ``stable_baselines3`` module; ``ImportError`` naming the ``train`` extra if absent."""
+    try:
+        import stable_baselines3
+    except ImportError as err:
+        raise ImportError(
+            f"learned policies need stable-baselines3 and torch: {INSTALL_HINT}"
+        ) from err
+    return stable_baselines3
+
+
+def algorithm_class(algo: str) -> Any:
+    """The stable-baselines3 algorithm class named ``algo`` (case-insensitive)."""
+    name = algo.upper()
+    if name not in ALGORITHMS:
+        raise ValueError(f"unknown algorithm {algo!r}; choose one of: {', '.join(ALGORITHMS)}")
+    return getattr(import_sb3(), name)
+
+
+def model_data(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """The ``data`` JSON of a stable-baselines3 model ``.zip`` (the saved attributes).
+
+    Raises :class:`PolicyFileError` when the file is not such a zip archive.
+    """
+    try:
+        with zipfile.ZipFile(path) as archive:
+            raw = archive.read("data")
+    except KeyError:
+        why = "not a stable-baselines3 model (the zip has no 'data' entry)"
+        raise PolicyFileError(path, why) from None
+    except (zipfile.BadZipFile, OSError, EOFError) as exc:
+        why = "not a zip archive" if isinstance(exc, zipfile.BadZipFile) else str(exc)
+        raise PolicyFileError(path, f"not a stable-baselines3 model ({why})") from None
+    try:
+        data = json.loads(raw)
+    except (ValueError, UnicodeDecodeError):
+        why = "not a stable-baselines3 model (its 'data' entry is not JSON)"
+        raise PolicyFileError(path, why) from None
+    if not isinstance(data, dict):
+        raise PolicyFileError(path, "not a stable-baselines3 model (bad 'data')")
+    return data
+
+
+def detect_algorithm(path: str | os.PathLike[str]) -> str | None:
+    """The algorithm of a model file, read from its ``data`` JSON: the policy class's module
+    tells SAC, TD3 (DDPG when ``policy_delay`` is 1 and ``target_noise_clip`` 0) and DQN
+    apart from the actor-critic policies, of which PPO has a ``clip_range`` and A2C none.
+
+    ``None`` when the file gives no hint; :class:`PolicyFileError` when it is no model or
+    names a policy class outside stable-baselines3 (sb3-contrib, a custom class).
+    """
+    data = model_data(path)
+    policy = data.get("policy_class")
+    module = policy.get("__module__") if isinstance(policy, dict) else None
+    if not isinstance(module, str):
+        return None
+    if module in _POLICY_MODULES:
+        algo = _POLICY_MODULES[module]
+        if algo == "TD3" and data.get("policy_delay") == 1 and data.get("target_noise_clip") == 0:
+            return "DDPG"
+        return algo
+    if module == "stable_baselines3.common.policies":
+        return "PPO" if "clip_range" in data else "A2C"
+    raise PolicyFileError(path, f"its policy class comes from {module}, not from a "
+                          f"stable-baselines3 algorithm ({', '.join(ALGORITHMS)})")  # fmt: skip
+
+
+@contextmanager
+def global_rngs_kept() -> Iterator[None]:
+    """Restore the global generators of ``random``, numpy and torch (CUDA included) on
+    leaving. stable-baselines3's ``load`` seeds them with the seed the model was trained
+    with: a training run that loads a model (a teacher of its warm start, or the
+    checkpoint of each periodic evaluation, evaluated in the training process) would
+    otherwise draw the same numbers whatever its own seed, and again after every
+    evaluation."""
+    import random
+
+    states = (random.getstate(), np.random.get_state())
+    try:
+        import torch
+    except ImportError:
+        torch = None
+    torch_state = None if torch is None else torch.get_rng_state()
+    cuda = torch is not None and torch.cuda.is_available()
+    cuda_states = torch.cuda.get_rng_state_all() if cuda else None
+    try:
+        yield
+    finally:
+        random.setstate(states[0])
+        np.random.set_state(states[1])
+        if torch is not None:
+            torch.set_rng_state(torch_state)
+        if cuda:
+            torch.cuda.set_rng_state_all(cuda_states)
+
+
+def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[Any, str]:
+    """Load a model on the CPU; returns it and its algorithm. The global random generators
+    are left as they were (:func:`global_rngs_kept`).
+
+    ``algo``: force one of :data:`ALGORITHMS`; ``None`` detects it from the file
+    (:func:`detect_algorithm`), else tries each algorithm in turn. Raises
+    :class:`PolicyFileError` naming the file, the algorithm(s) tried and why they failed.
+    """
+    path = os.fspath(path)
+    detected = detect_algorithm(path)
+    if algo is not None:
+        name = algo.upper()
+        try:
+            with global_rngs_kept():
+                return algorithm_class(name).load(path, device="cpu"), name
+        except ImportError:
+            raise
+        except Exception as exc:
+            hint = f"; the file holds a {detected} model" if detected and detected != name else ""
+            raise PolicyFileError(path, f"cannot be loaded as a stable-baselines3 {name} model "
+                                  f"({_why(exc)}){hint}") from None  # fmt: skip
+    order = [detected] if detected else [a for a in ALGORITHMS if a != "DDPG"]
+    failures = []
+    for name in order:
+        try:
+            with global_rngs_kept():
+                return algorithm_class(name).load(path, device="cpu"), name
+        except ImportError:
+            raise
+        except Exception as exc:
+            failures.append(f"{name}: {_why(exc)}")
+    raise PolicyFileError(path, f"not a loadable stable-baselines3 model (tried "
+                                f"{'; '.join(failures)})")  # fmt: skip
+
+
+def _why(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
+
+
+def load_vecnormalize(path: str | os.PathLike[str]) -> Any:
+    """The ``VecNormalize`` object saved at ``path`` (without its environment), set to
+    evaluation mode (its statistics frozen).
+
+    Raises :class:`VecNormalizeError` naming the file when it cannot be read, is corrupt or
+    holds something else.
+    """
+    import_sb3()
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    where = os.fspath(path)
+    try:
+        with open(path, "rb") as f:
+            obj = pickle.load(f)  # the user's own training artefact
+    except OSError as exc:
+        raise VecNormalizeError(where, f"cannot read: {exc.strerror or exc}") from None
+    except Exception as exc:  # truncated, garbled or foreign pickle
+        raise VecNormalizeError(where, f"corrupt VecNormalize file ({_why(exc)})") from None
+    if not isinstance(obj, VecNormalize):
+        raise VecNormalizeError(where, f"not a VecNormalize file (holds {type(obj).__name__})")
+    obj.training = False
+    obj.norm_reward = False
+    return obj
+
+
+def model_steps(path: str) -> int:
+    """The training steps a saved SB3 model had taken (its ``num_timesteps``)."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
+    return int(data.get("num_timesteps", 0))
