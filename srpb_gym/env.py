@@ -97,10 +97,30 @@ class SRPBNavEnv(gym.Env):
     1.5 m towards the goal's position and heading, in no preset) and SRPB per-step terms
     ``obs``, ``vsm``, ``hsm``, ``osc``, ``bwd``, ``iprot``, ``chc``, ``psi``, ``fsi``,
     ``dir``. ``reward="srpb"``
-    (default) or ``"task"`` picks a preset, which a scenario's ``reward`` section may
-    re-weight (``corridor`` and ``fformation`` pay the ``srpb`` preset's ``obs``, ``psi``,
-    ``fsi`` and ``dir`` five times over, with ``collision`` -110; ``envs/README.md``);
-    ``reward_weights`` overrides weights by name.
+    (default) or ``"task"`` picks a preset (``configs/reward/``); every packaged scenario
+    pays the preset as it is. A scenario file of your own may re-weight it in a ``reward``
+    section (``envs/README.md``); ``reward_weights`` overrides weights by name. The
+    weights in force are in the ``info`` of ``reset``: ``info["reward_weights"]``, every
+    term by name.
+
+    | term | ``srpb`` | ``task`` | paid |
+    | --- | --- | --- | --- |
+    | progress | 1.0 | 1.0 | per metre of progress towards the goal |
+    | success | 10.0 | 10.0 | once, on reaching the goal |
+    | collision | -25.0 | -25.0 | once, at a contact |
+    | time | -0.1 | -0.1 | per second |
+    | approach | 0 | 0 | potential-based, the last 1.5 m to the goal's pose |
+    | obs | -0.2 | 0 | per second closer than ``safety_distance`` to an obstacle |
+    | vsm | -0.002 | 0 | per m/s^2 of linear acceleration in the step |
+    | hsm | -0.002 | 0 | per rad/s^2 of angular acceleration in the step |
+    | osc | -0.05 | 0 | per second oscillating |
+    | bwd | -0.1 | 0 | per second moving backward |
+    | iprot | -0.05 | 0 | per second rotating in place |
+    | chc | -0.05 | 0 | per radian of heading change |
+    | psi | -1.0 | 0 | per second of full personal-space intrusion |
+    | fsi | -0.6 | 0 | per second of full O-space intrusion |
+    | dir | -0.2 | 0 | per second of heading straight into a person |
+
     ``info["reward_<term>"]`` holds each weighted term (they sum to the reward) and
     ``info["srpb_step/<term>"]`` the unweighted SRPB terms. The presets cannot be gamed by
     crashing: for a learner discounting by 0.99 per step, every shaping term at its worst
@@ -172,7 +192,12 @@ class SRPBNavEnv(gym.Env):
       with weight 0 in both presets (their rewards unchanged). The observation setting
       ``lidar_encoding`` was added; its default ``"linear"`` is the observation as before.
       So were ``lidar_groups`` and ``group_distance``; by default (0) no O-space is drawn,
-      the observation as before.
+      the observation as before. ``corridor`` and ``fformation`` no longer re-weight the
+      ``srpb`` preset (they paid its ``obs``, ``psi``, ``fsi`` and ``dir`` five times over,
+      with ``collision`` -110): ``gym.make(id)`` pays the documented preset in every
+      scenario, and returns of earlier builds in these two scenarios are not comparable
+      (``reward_weights={obs: -1, psi: -5, fsi: -3, dir: -1, collision: -110}`` gives the
+      former weights; metrics, dynamics and observations are unchanged).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

@@ -143,7 +143,8 @@ class RobotTask:
 
     # ------------------------------------------------------------------ episode
     def reset(self) -> tuple[Any, dict[str, Any]]:
-        """Start the episode of a freshly reset simulation: the first observation and info."""
+        """Start the episode of a freshly reset simulation: the first observation and info
+        (with ``reward_weights``: the weight of every term in force, by name)."""
         self.collided = False
         self.done = False
         distance = self.sim.goal_distance(self.robot)
@@ -152,6 +153,7 @@ class RobotTask:
                                        self.sim.robot_config)  # fmt: skip
         self.reward_fn.reset(self.record, distance)
         info = self._info(False, False, distance)
+        info["reward_weights"] = dict(zip(TERMS, self.reward_fn.weights.tolist()))
         return self.observation(), info
 
     def decode(self, action: Any, out: NDArray[np.float64]) -> None:

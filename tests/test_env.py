@@ -96,6 +96,7 @@ def test_spec_is_json_and_info_keys_stable(env_id):
     _, info = env.reset(seed=0)
     keys = {k: type(v) for k, v in info.items()}
     assert not any(k.startswith(("srpb/", "srpb_gt/")) for k in keys)  # not computed yet
+    assert keys.pop("reward_weights") is dict  # the weights in force: at reset only
     for _ in range(5):
         _, _, terminated, truncated, info = env.step(env.action_space.sample())
         if terminated or truncated:

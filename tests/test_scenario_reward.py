@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 import srpb_gym  # noqa: F401  (registers the ids)
+from srpb_gym.env import SRPBNavEnv
 from srpb_gym.errors import InputError
 from srpb_gym.pettingzoo_env import SRPBParallelEnv
+from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.reward import TERMS, RewardGameableWarning, load_preset, resolve_weights
 from srpb_gym.scenarios import load_scenario
 from srpb_gym.training.checks import check_env_args
@@ -100,39 +102,44 @@ def test_an_environment_pays_the_scenarios_weights(tmp_path) -> None:
     task.close()
 
 
-def test_packaged_scenarios_weights() -> None:
-    """corridor and fformation pay the preset's social and obs weights five times over, with
-    a collision penalty that bounds them; the scenarios with crossing walkers keep the
-    preset (driving there would cost more than waiting, tests/test_reward_bound.py)."""
-    preset = load_preset("srpb")
-    for name in ("corridor", "fformation"):
-        env = gym.make("SRPB-Custom-v0", scenario=name)
-        weights = _weights(env)
-        env.close()
-        for term in ("obs", "psi", "fsi", "dir"):
-            assert weights[term] == pytest.approx(5 * preset[term]), (name, term)
-        assert weights["collision"] == -110.0
-    for env_id in ("SRPB-Crossing-v0", "SRPB-Crowd-v0", "SRPB-Doorway-v0"):
-        env = gym.make(env_id)
-        assert _weights(env) == {t: preset.get(t, 0.0) for t in TERMS}, env_id
-        env.close()
+def test_packaged_scenarios_pay_the_documented_preset() -> None:
+    """gym.make(id) pays the preset as configs/reward/ and the env docstring give it, in
+    every packaged scenario; reset's info says the weights in force."""
+    for preset in ("srpb", "task"):
+        expected = {t: load_preset(preset).get(t, 0.0) for t in TERMS}
+        for env_id in SCENARIO_IDS:
+            env = gym.make(env_id, reward=preset)
+            assert _weights(env) == expected, (env_id, preset)
+            _, info = env.reset(seed=0)
+            assert info["reward_weights"] == expected
+            env.close()
 
 
-def test_each_scenario_of_a_mixture_and_each_robot_keep_their_weights() -> None:
-    env = gym.make("SRPB-Mix-v0").unwrapped
-    assert env.task_of("corridor").reward_fn.weights[TERMS.index("psi")] == -5.0
+def test_the_docstring_table_is_the_presets() -> None:
+    rows = {}
+    for line in (SRPBNavEnv.__doc__ or "").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 4 and cells[0] in TERMS:
+            rows[cells[0]] = cells[1:3]
+    assert set(rows) == set(TERMS)
+    for term, (srpb, task) in rows.items():
+        assert float(srpb) == load_preset("srpb").get(term, 0.0), term
+        assert float(task) == load_preset("task").get(term, 0.0), term
+
+
+def test_each_scenario_of_a_mixture_and_each_robot_keep_their_weights(tmp_path) -> None:
+    path = tmp_path / "weighted.yaml"
+    path.write_text(SCENARIO, encoding="utf-8")
+    env = gym.make("SRPB-Mix-v0", scenarios=["crowd", str(path)]).unwrapped
+    assert env.task_of("weighted").reward_fn.weights[TERMS.index("psi")] == -2.0
     assert env.task_of("crowd").reward_fn.weights[TERMS.index("psi")] == -1.0
-    env.reset(seed=0, options={"scenario": "corridor"})
-    assert env.task.reward_fn.weights[TERMS.index("psi")] == -5.0
-    for _ in range(300):  # down the corridor towards the walkers, until one is intruded on
-        _, _, terminated, truncated, info = env.step(np.array([0.5, 0.0], np.float32))
-        if info["srpb_step/psi"] > 0.0 or terminated or truncated:
-            break
-    assert info["srpb_step/psi"] > 0.0
-    assert info["reward_psi"] == pytest.approx(-5.0 * info["srpb_step/psi"])
+    _, info = env.reset(seed=0, options={"scenario": "weighted"})
+    assert info["reward_weights"]["psi"] == -2.0
+    _, info = env.reset(seed=0, options={"scenario": "crowd"})
+    assert info["reward_weights"]["psi"] == -1.0
     env.close()
-    multi = SRPBParallelEnv(scenario="corridor", n_robots=2)
-    assert [t.reward_fn.weights[TERMS.index("collision")] for t in multi.tasks] == [-110.0] * 2
+    multi = SRPBParallelEnv(scenario=str(path), n_robots=1)
+    assert [t.reward_fn.weights[TERMS.index("collision")] for t in multi.tasks] == [-40.0]
     multi.close()
 
 

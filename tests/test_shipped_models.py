@@ -333,7 +333,8 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(ship, "MODELS_DIR", tmp_path / "models")
     monkeypatch.setattr(ship, "stamp_observation", lambda *args: stamped.append(args))
     _fake_run(tmp_path / "run", best=True, interrupted=True,
-              kwargs="{observation: {lidar_encoding: log}}")  # fmt: skip
+              kwargs="{observation: {lidar_encoding: log}, reward_weights: {obs: -1.0, "
+                     "psi: -5.0, fsi: -3.0, dir: -1.0, collision: -110.0}}")  # fmt: skip
     card = ship.ship(tmp_path / "run", "ppo-corridor-srpb", 100, 10_000, False, validate=50,
                      workers=2)  # fmt: skip
     assert workers_seen == [2, 2, 2]  # validation of best/ and of the final model, the test

@@ -80,6 +80,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| checkpoint | {card['checkpoint']}{_validation(card.get('validation'))} |",
         f"| command | `{t['command']}` |",
         f"| versions | {', '.join(f'{k} {v}' for k, v in t['versions'].items())} |",
+        *(["", card["note"]] if card.get("note") else []),
         "", "Hyperparameters: " + ", ".join(f"`{k}={_flow(v)}`"
                                             for k, v in card["hyperparams"].items()),
         "", f"## Test: {card['test']['episodes']} episodes per scenario, seeds from "
