@@ -22,7 +22,9 @@ The modules, each importable without stable-baselines3 and torch:
 * :mod:`srpb_gym.models.loading`: loading a model and its statistics
   (:func:`load_model`, :func:`load_vecnormalize`) and their errors;
 * :mod:`srpb_gym.models.record`: the observation settings a model was trained with
-  (:data:`OBSERVATION_RECORD`).
+  (:data:`OBSERVATION_RECORD`);
+* :mod:`srpb_gym.models.forward`: the fixed-order forward pass of a PPO or A2C
+  ``MlpPolicy`` (:func:`fixed_order_policy`), whose actions are the same on every CPU.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from srpb_gym.models.files import (
     resolve_model,
     vecnormalize_candidates,
 )
+from srpb_gym.models.forward import FixedOrderPolicy, UnsupportedPolicyError, fixed_order_policy
 from srpb_gym.models.loading import (
     ALGORITHMS,
     PolicyFileError,
@@ -61,9 +64,10 @@ from srpb_gym.models.record import (
 )
 from srpb_gym.models.shipped import MODEL_FILE, card, model_names, model_path
 
-__all__ = ["ALGORITHMS", "MODEL_FILE", "OBSERVATION_RECORD", "VECNORMALIZE", "PolicyFileError",
-           "VecNormalizeError", "card", "describe_space", "detect_algorithm", "find_model",
-           "find_vecnormalize", "global_rngs_kept", "lidar_beams_of", "load_model",
+__all__ = ["ALGORITHMS", "MODEL_FILE", "OBSERVATION_RECORD", "VECNORMALIZE", "FixedOrderPolicy",
+           "PolicyFileError", "UnsupportedPolicyError", "VecNormalizeError", "card",
+           "describe_space", "detect_algorithm", "find_model", "find_vecnormalize",
+           "fixed_order_policy", "global_rngs_kept", "lidar_beams_of", "load_model",
            "load_vecnormalize", "model_data", "model_names", "model_path", "model_steps",
            "observation_config_of", "observation_mismatch", "read_record",
            "record_observation", "recorded_observation", "resolve_model", "settings_mismatch",

@@ -21,11 +21,18 @@ as the environment builds its own. Settings that keep the space's shape
 (``lidar_encoding``, the scales) can then never be mixed up, and models trained with
 different settings are evaluated side by side. A model saved without the record acts on
 the environment's observation.
+
+The deterministic actions of a PPO or A2C ``MlpPolicy`` (every shipped model) are
+computed by :class:`~srpb_gym.models.forward.FixedOrderPolicy`, a fixed-order forward pass
+of the model's weights, not by torch: they are bit-identical on every CPU, whatever MKL
+would pick. Other policies act through torch's ``predict`` (a note on stderr at load says
+so) and may differ in their last bits from one CPU to another.
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from typing import Any
 
 import numpy as np
@@ -34,6 +41,7 @@ from numpy.typing import NDArray
 from srpb_gym.errors import InputError
 from srpb_gym.knowledge import Knowledge
 from srpb_gym.models.files import find_vecnormalize
+from srpb_gym.models.forward import FixedOrderPolicy, UnsupportedPolicyError, fixed_order_policy
 from srpb_gym.models.loading import (
     PolicyFileError,
     VecNormalizeError,
@@ -52,6 +60,9 @@ from srpb_gym.planners.base import Planner
 
 __all__ = ["LearnedPolicy"]
 
+_NOTED: set[str] = set()
+"""The notes on torch's actions already printed by this process (one per model file)."""
+
 
 class LearnedPolicy(Planner):
     """A stable-baselines3 model acting on its observation.
@@ -66,6 +77,16 @@ class LearnedPolicy(Planner):
     as an environment with those settings would, and ignores the environment's (``act``
     then needs the snapshot). A model without the record acts on the environment's
     observation and may be given ``None``.
+
+    The same actions on every CPU: the observation is normalised elementwise in numpy
+    (``VecNormalize``'s ``(obs - mean) / sqrt(var + eps)``, clipped: correctly rounded
+    operations only), and the deterministic action of a PPO or A2C ``MlpPolicy`` comes
+    from a fixed-order forward pass of its weights (``forward``, a
+    :class:`~srpb_gym.models.forward.FixedOrderPolicy`; within 1e-6 of torch's), so it is
+    bit-identical whatever the processor or MKL's code path. Other policies (SAC, TD3,
+    DDPG, DQN, CNN or custom extractors) and sampled actions (``deterministic=False``)
+    keep torch's ``predict``: ``forward`` is ``None``, ``forward_note`` says why, and a
+    note on stderr at load says so (once per model file and process).
     """
 
     name = "learned"
@@ -85,6 +106,16 @@ class LearnedPolicy(Planner):
             self.observation_config = None if record is None else recorded_observation(record)
         except ValueError as exc:
             raise PolicyFileError(self.path, str(exc)) from None
+        self.forward: FixedOrderPolicy | None = None
+        self.forward_note: str | None = None
+        try:
+            self.forward = fixed_order_policy(self.model, deterministic)
+        except UnsupportedPolicyError as exc:
+            self.forward_note = (f"{self.path}: actions from torch, which may differ in "
+                                 f"their last bits on another CPU ({exc})")  # fmt: skip
+            if self.forward_note not in _NOTED:
+                _NOTED.add(self.forward_note)
+                print(f"srpb-gym: note: {self.forward_note}", file=sys.stderr)
         self._builder: ObservationBuilder | None = None
         self._sensors: tuple[Any, ...] = ()
         if vecnormalize == "auto":
@@ -167,5 +198,7 @@ class LearnedPolicy(Planner):
             observation = builder.build(k.pose, k.goal, k.velocity, k.scan, k.tracks)
         if self._normalizer is not None:
             observation = self._normalizer.normalize_obs(observation)
+        if self.forward is not None:
+            return self.forward.predict(observation)
         action, _ = self.model.predict(observation, deterministic=self.deterministic)
         return np.asarray(action, dtype=np.float32)
