@@ -23,6 +23,7 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation import run_episode
 from srpb_gym.planners import PLANNERS, Planner, check_settings, make_planner, planner_config
 from srpb_gym.planners.config import planner_settings
+from srpb_gym.seeds import check_not_test
 
 IDS = {
     "corridor": "SRPB-Corridor-v0",
@@ -54,7 +55,9 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--planners", nargs="+", default=sorted(PLANNERS))
     ap.add_argument("--scenarios", nargs="+", default=list(IDS), choices=list(IDS))
     ap.add_argument("--seeds", type=int, default=20, help="seeds 0..N-1")
-    ap.add_argument("--first-seed", type=int, default=0)
+    ap.add_argument("--first-seed", type=int, default=0,
+                    help="first seed (tuning chooses: never a test seed, srpb_gym/seeds.py)",
+                    )  # fmt: skip
     ap.add_argument("--planner-config", metavar="FILE", help="YAML file of planner settings")
     ap.add_argument("--planner-param", action="append", default=[], metavar="NAME.FIELD=VALUE",
                     help="one planner setting, e.g. dwa.horizon=2.5 (repeatable)")  # fmt: skip
@@ -62,6 +65,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
     try:
+        check_not_test(args.first_seed, args.seeds, "--first-seed")
         settings = check_settings(planner_settings(args.planner_config, args.planner_param))
         for name in args.planners:
             planner_config(name, settings.get(name))

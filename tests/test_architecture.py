@@ -16,7 +16,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "srpb_gym"
 
 #: from the ground floor up; a name is a module or a subpackage of srpb_gym
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("_version", "errors", "angles", "yaml_io", "resources", "data"),
+    ("_version", "errors", "angles", "yaml_io", "resources", "data", "seeds"),
     ("config", "reward_terms", "registration"),
     ("metrics",),
     ("sim",),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,7 @@ from srpb_gym.training.config import (
     parse_overrides,
     resolve,
     rl_zoo_document,
+    rl_zoo_entry,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -163,7 +165,29 @@ def test_rl_zoo_file_is_up_to_date():
     entry = __import__("yaml").safe_load(shipped)["SRPB-Crowd-v0"]
     config = resolve("SRPB-Crowd-v0")
     assert entry["n_steps"] == config.n_steps and entry["n_timesteps"] == config.n_timesteps
-    assert entry["normalize"] is True and "net_arch=dict(pi=[256, 256]" in entry["policy_kwargs"]
+    assert "net_arch=dict(pi=[256, 256]" in entry["policy_kwargs"]
+    # the Zoo evaluates a text `normalize` as VecNormalize's keyword arguments (and adds the
+    # entry's gamma): the same normaliser as srpb-gym train's, the reward never clipped
+    normalize = eval(entry["normalize"], {})
+    assert normalize == {k: v for k, v in config.vecnormalize_kwargs().items() if k != "gamma"}
+    assert normalize["clip_reward"] == math.inf and normalize["norm_reward"] is True
+    assert rl_zoo_entry(resolve("SRPB-Crowd-v0", {"normalize": False}))["normalize"] is False
+
+
+def test_reward_clip_keys_are_refused_naming_the_key(tmp_path):
+    """srpb-gym train never clips the normalised reward (a clip of k sigma can cut the
+    collision penalty below the shaping bound): a clip asked for is refused, naming the key
+    in an override or the file's line."""
+    for key in ("clip_reward", "norm_reward"):
+        with pytest.raises(InputError) as err:
+            resolve("SRPB-Crowd-v0", parse_overrides([f"{key}=10"]))
+        assert str(err.value).startswith(f"--hyperparams: {key}: ")
+        assert "\n" not in str(err.value)
+    path = tmp_path / "ppo.yaml"
+    path.write_text("default:\n  n_envs: 2\n  clip_reward: 10.0\n", encoding="utf-8")
+    with pytest.raises(InputError, match=r"ppo.yaml:3: default.clip_reward: srpb-gym train "
+                       r"never clips the normalised reward"):  # fmt: skip
+        resolve("SRPB-Crowd-v0", source=path)
 
 
 def test_export_script_check_mode():

@@ -57,6 +57,14 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
     with open(out / "progress.csv", newline="") as f:
         header = next(csv.reader(f))
     assert {"reward/progress", "reward/collision", "episode/success"} <= set(header)
+    # the reward as the learner sees it: never clipped, a collision beyond the shaping bound
+    assert {"train/reward_clip_fraction", "train/collision_margin"} <= set(header)
+    with open(out / "progress.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    fractions = [float(r["train/reward_clip_fraction"]) for r in rows
+                 if r["train/reward_clip_fraction"]]  # fmt: skip
+    assert fractions and set(fractions) == {0.0}
+    assert all(float(r["train/collision_margin"]) > 0 for r in rows if r["train/collision_margin"])
     assert any(h.startswith("srpb/m_psi") for h in header), "episode metrics not logged"
     with open(out / "evaluations.csv", newline="") as f:
         rows = list(csv.DictReader(f))

@@ -22,7 +22,11 @@ from pathlib import Path
 import srpb_gym
 from srpb_gym.models.record import record_observation
 from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.training.config import vecnormalize_kwargs
 from srpb_gym.training.shared_policy import SharedPolicyVecEnv
+
+#: PPO's discount here (stable-baselines3's default), which the return statistics share
+GAMMA = 0.99
 
 
 def train(
@@ -40,9 +44,9 @@ def train(
            for _ in range(envs)]  # fmt: skip
     venv = SharedPolicyVecEnv(fns)
     venv.seed(seed)
-    venv = VecNormalize(VecMonitor(venv), norm_reward=True)
+    venv = VecNormalize(VecMonitor(venv), **vecnormalize_kwargs(GAMMA))  # reward unclipped
     model = PPO("MlpPolicy", venv, n_steps=max(64, 2048 // venv.num_envs), batch_size=64,
-                seed=seed, verbose=0)  # fmt: skip
+                gamma=GAMMA, seed=seed, verbose=0)  # fmt: skip
     record_observation(model, venv.unwrapped.envs[0].observation_config)
     started = time.perf_counter()
     model.learn(total_timesteps=steps)

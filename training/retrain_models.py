@@ -9,9 +9,11 @@ configs/train/ppo.yaml, stopped after at most ``--max-minutes`` (60) of wall tim
 model's own shorter time (:attr:`RunSettings.minutes`), into ``runs/train/<name>-<time>``;
 then ``python -m training.ship`` tests its best checkpoint (or, with
 :attr:`RunSettings.validate`, the better of best/ and the final model on validation seeds)
-on 100 unseen seeds (from 10000) and writes ``srpb_gym/models/<name>/`` with its model
-card. On a 2-core machine two runs side by side (``--jobs 2``, one torch thread each)
-finish sooner than one after the other.
+once on 100 test seeds (from 20,000,000: :data:`srpb_gym.seeds.TEST`) and writes
+``srpb_gym/models/<name>/`` with its model card, which says that one candidate run was
+trained for the slot (the recipe is fixed here; it was chosen on validation seeds, and
+docs/training.md counts the runs that chose it). On a 2-core machine two runs side by
+side (``--jobs 2``, one torch thread each) finish sooner than one after the other.
 
 Some models start from something else than random weights, as their cards say: a warm
 start from a classical planner's demonstrations (``pretrain_planner``: ``dwa`` or
@@ -224,7 +226,7 @@ def commands(name: str, max_minutes: float, threads: int) -> list[list[str]]:
     if settings.start is not None:
         out[-1] += ["--init", f"{first}/best"]
         out[-1] += ["--init-new-observation"] if settings.new_observation else []
-    ship = [sys.executable, "-m", "training.ship", run, "--name", name]
+    ship = [sys.executable, "-m", "training.ship", run, "--name", name, "--candidates", "1"]
     if settings.validate:
         ship += ["--validate", str(settings.validate)]
     return [*out, ship]

@@ -3,17 +3,20 @@
     python -m training.ship runs/train/ppo-crowd-srpb --name ppo-crowd-srpb
 
 Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--final`` takes
-the final model; ``--validate N`` tests both on N validation seeds, none of which chose
-best/, and takes the better by the periodic evaluations' rule), evaluates it with
-the ``srpb-gym eval`` harness on ``--episodes`` unseen seeds from ``--seed`` (100 from
-10000 by default; each scenario of the mixture for a model trained on SRPB-Mix-v0; the
-environments made with the run's env kwargs but those of training only, see
-:func:`srpb_gym.training.targets.eval_setup`), and writes
+the final model; ``--validate N`` tests both on N validation seeds from
+``--validation-seed``, none of which chose best/, and takes the better by the periodic
+evaluations' rule; a test seed there is refused), evaluates it once with the
+``srpb-gym eval`` harness on ``--episodes`` test seeds from ``--seed`` (100 from
+20,000,000 by default: :data:`srpb_gym.seeds.TEST`; each scenario of the mixture for a
+model trained on SRPB-Mix-v0; the environments made with the run's env kwargs but those
+of training only, see :func:`srpb_gym.training.targets.eval_setup`), and writes
 ``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
 training), ``card.json`` and ``card.md`` (environment id and version, reward preset and
 the weights it paid in each scenario, steps, wall time, machine, seed, command,
-hyperparameters and the test results). ``--workers N`` spreads the evaluations over N
-processes, as ``srpb-gym eval --workers`` (the same figures but for the computation times).
+hyperparameters, the test results, the seed range they were measured on, how many
+candidate runs were trained for the slot, ``--candidates``, and the ``srpb-gym eval``
+command that reproduces them). ``--workers N`` spreads the evaluations over N processes,
+as ``srpb-gym eval --workers`` (the same figures but for the computation times).
 """
 
 from __future__ import annotations
@@ -31,20 +34,25 @@ from typing import Any
 
 import yaml
 
+from srpb_gym.errors import InputError
 from srpb_gym.evaluation.harness import cpu, run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.models import settings_text, stamp_observation
 from srpb_gym.observation import ObservationConfig
+from srpb_gym.seeds import CHECKPOINT_SELECTION, TEST, VALIDATION, check_not_test, range_of
 from srpb_gym.training.callbacks import eval_score, summarize_results
 from srpb_gym.training.checks import reward_weights
-from srpb_gym.training.targets import eval_setup
+from srpb_gym.training.targets import eval_command, eval_setup
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
-TEST_SEED, TEST_EPISODES = 10_000, 100
-#: the first validation seed: apart from the periodic evaluations' seeds, which chose
-#: best/ (from 1,000,000), the demonstrations of a warm start (from 2,000,000) and the
-#: test seeds (from 10,000)
-VALIDATION_SEED = 3_000_000
+#: the test seeds (:data:`srpb_gym.seeds.TEST`), used once per shipped model, at shipping
+TEST_SEED, TEST_EPISODES = TEST.start, 100
+#: the first validation seed (:data:`srpb_gym.seeds.VALIDATION`): apart from the periodic
+#: evaluations' seeds, which chose best/, the demonstrations of a warm start and the test
+#: seeds
+VALIDATION_SEED = VALIDATION.start
+#: the warm-up of the test evaluation (none), which the card's command repeats
+TEST_WARMUP = 0
 
 
 def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path,
@@ -53,10 +61,43 @@ def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Pat
     environments made with ``env_kwargs``, the episodes spread over ``workers`` processes
     (the same figures but for the computation times ``m_cef`` and ``m_cre``)."""
     config = resolve_config(env_ids, policies=[str(model)], episodes=episodes, seed=seed,
-                            out=str(out), warmup=0, workers=workers, log=None,
+                            out=str(out), warmup=TEST_WARMUP, workers=workers, log=None,
                             env_kwargs=env_kwargs)  # fmt: skip
     outcome = run_evaluation(config, log=lambda line: None)
     return summarize_results(outcome.results)
+
+
+def test_command(name: str, test: dict[str, Any]) -> str:
+    """The ``srpb-gym eval`` command that reproduces a card's test figures (``test``: its
+    ``test`` entry): the shipped model by name, on the same environments, with the same
+    env kwargs, episodes, first seed and warm-up."""
+    return eval_command(test["envs"], test.get("env_kwargs") or {}, name,
+                        episodes=test["episodes"], seed=test["seed"],
+                        warmup=test.get("warmup", TEST_WARMUP))  # fmt: skip
+
+
+def _load_line(name: str, card: dict[str, Any]) -> str:
+    """How to load the model by name: for a card of the seed protocol, the command that
+    reproduces its test figures; a card shipped before names 5 episodes of one scenario."""
+    test = card["test"]
+    if "seed_range" not in test:
+        return f"Load it by name: `srpb-gym eval --env {test['envs'][0]} --policy {name}`."
+    return f"Load it by name; this reproduces the test figures below: `{test_command(name, test)}`."
+
+
+def _test_heading(test: dict[str, Any]) -> list[str]:
+    """The heading of a card's test figures, and for a card of the seed protocol the seeds
+    and the candidate runs behind them."""
+    if "seed_range" not in test:
+        return [f"## Test: {test['episodes']} episodes per scenario, seeds from "
+                f"{test['seed']} (never trained on)", ""]  # fmt: skip
+    last = test["seed"] + test["episodes"] - 1
+    n = test["candidates"]
+    runs = "1 candidate run was" if n == 1 else f"{n} candidate runs were"
+    return [f"## Test: {test['episodes']} episodes per scenario, seeds {test['seed']}-{last} "
+            f"({test['seed_range']} seeds, never trained on or chosen with)", "",
+            f"{runs} trained for this slot; the test seeds were used once, at shipping.",
+            ""]  # fmt: skip
 
 
 def card_markdown(name: str, card: dict[str, Any]) -> str:
@@ -64,8 +105,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
     lines = [
         f"# {name}", "",
         f"PPO (stable-baselines3) trained on `{card['env']}` with the `{card['reward']}` "
-        "reward preset. Load it by name: "
-        f"`srpb-gym eval --env {card['test']['envs'][0]} --policy {name}`.", "",
+        f"reward preset. {_load_line(name, card)}", "",
         "| fact | value |", "| --- | --- |",
         f"| environment | `{card['env']}` |",
         f"| reward preset | `{card['reward']}` |",
@@ -83,8 +123,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         *(["", card["note"]] if card.get("note") else []),
         "", "Hyperparameters: " + ", ".join(f"`{k}={_flow(v)}`"
                                             for k, v in card["hyperparams"].items()),
-        "", f"## Test: {card['test']['episodes']} episodes per scenario, seeds from "
-        f"{card['test']['seed']} (never trained on)", "",
+        "", *_test_heading(card["test"]),
         "| scenario | success | collision | timeout | m_psi | m_fsi | m_dir | m_mef |",
         "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]  # fmt: skip
@@ -95,7 +134,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
     lines += ["", "Medians of the SRPB metrics (%, s), `paper` semantics, from the tracked "
               "people. Training curves: `evaluations.csv` (periodic evaluations, "
               f"{card['hyperparams']['eval_episodes']} episodes each on seeds from "
-              "1000000)."]  # fmt: skip
+              f"{CHECKPOINT_SELECTION.start})."]  # fmt: skip
     if card["test"].get("machine"):
         lines += ["", f"Measured on {_cpu_text(card['test']['machine'])}; on another "
                   "processor the figures may differ a little (docs/evaluation.md, "
@@ -276,12 +315,15 @@ def same_model(a: Path, b: Path) -> bool:
 
 
 def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, Any] | None = None,
-           workers: int = 1) -> tuple[Path, dict[str, Any]]:  # fmt: skip
+           workers: int = 1, seed: int = VALIDATION_SEED,
+           ) -> tuple[Path, dict[str, Any]]:  # fmt: skip
     """``best/`` or the final model of ``run``, whichever scores higher
     (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then mean median m_psi)
-    on ``episodes`` seeds from :data:`VALIDATION_SEED`; ``best/`` on a tie (and without a
-    second evaluation when ``best/`` is the final model). Returns the chosen folder and the
-    validation figures of both."""
+    on ``episodes`` seeds from ``seed`` (default :data:`VALIDATION_SEED`; a test seed is an
+    :class:`~srpb_gym.errors.InputError` naming ``--validation-seed``); ``best/`` on a tie
+    (and without a second evaluation when ``best/`` is the final model). Returns the chosen
+    folder and the validation figures of both."""
+    check_not_test(seed, episodes, "--validation-seed")
     figures: dict[str, Any] = {}
     for label, folder in (("best", run / "best"), ("final", run)):
         work = run / "validation" / label
@@ -289,21 +331,27 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
         if label == "final" and same_model(run / "best", run):
             figures[label] = figures["best"]
             continue
-        figures[label] = evaluate(folder / "model.zip", env_ids, episodes, VALIDATION_SEED,
-                                  work, env_kwargs, workers)  # fmt: skip
+        figures[label] = evaluate(folder / "model.zip", env_ids, episodes, seed, work,
+                                  env_kwargs, workers)  # fmt: skip
     better = eval_score(figures["final"].values()) > eval_score(figures["best"].values())
     return (run if better else run / "best"), {
         "episodes": episodes,
-        "seed": VALIDATION_SEED,
+        "seed": seed,
         "chosen": "final" if better else "best",
         "results": figures,
     }
 
 
 def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
-         validate: int = 0, workers: int = 1) -> dict[str, Any]:  # fmt: skip
+         validate: int = 0, workers: int = 1, candidates: int = 1,
+         validation_seed: int = VALIDATION_SEED) -> dict[str, Any]:  # fmt: skip
+    """Package ``run`` as model ``name`` (see the module docstring): its test figures on
+    ``episodes`` seeds from ``seed``, computed once, here; ``candidates``: the runs
+    trained for this slot, which the card states."""
     if final and validate:
         raise ValueError("final and validate exclude each other")
+    if candidates < 1:
+        raise ValueError(f"candidates: at least the run shipped, got {candidates}")
     config = yaml.safe_load((run / "config.yaml").read_text(encoding="utf-8"))
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
     env_ids, env_kwargs = eval_setup(config["env"], config.get("env_kwargs"))
@@ -313,7 +361,8 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
               + (" without validation" if validate else ""), file=sys.stderr)  # fmt: skip
     validation = None
     if validate and has_best:
-        checkpoint, validation = choose(run, env_ids, validate, env_kwargs, workers)
+        checkpoint, validation = choose(run, env_ids, validate, env_kwargs, workers,
+                                        validation_seed)  # fmt: skip
     else:
         checkpoint = run if final or not has_best else run / "best"
     work = run / "test"
@@ -346,12 +395,21 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
                      "time_limit_reached": info.get("time_limit_reached", False),
                      "interrupted": info.get("interrupted", False),
                      "warm_start": info.get("warm_start"), "init": _init(info.get("init"))},
-        "test": {"episodes": episodes, "seed": seed, "envs": env_ids, "results": results,
-                 "machine": cpu()},
+        "test": {"episodes": episodes, "seed": seed, "seed_range": _range_name(seed, episodes),
+                 "candidates": candidates, "envs": env_ids, "env_kwargs": env_kwargs,
+                 "warmup": TEST_WARMUP, "results": results, "machine": cpu()},
     }  # fmt: skip
+    card["test"]["command"] = test_command(name, card["test"])
     (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
     (target / "card.md").write_text(card_markdown(name, card), encoding="utf-8")
     return card
+
+
+def _range_name(seed: int, episodes: int) -> str:
+    """The name of the seed range that seeds ``seed`` to ``seed + episodes - 1`` lie in
+    (:mod:`srpb_gym.seeds`), or ``"unreserved"``."""
+    first, last = range_of(seed), range_of(seed + episodes - 1)
+    return first.name if first is not None and first == last else "unreserved"
 
 
 def main() -> int:
@@ -359,11 +417,19 @@ def main() -> int:
     parser.add_argument("run", type=Path, help="the run folder of srpb-gym train")
     parser.add_argument("--name", required=True, help="short name, e.g. ppo-crowd-srpb")
     parser.add_argument("--episodes", type=int, default=TEST_EPISODES)
-    parser.add_argument("--seed", type=int, default=TEST_SEED)
+    parser.add_argument("--seed", type=int, default=TEST_SEED,
+                        help=f"first test seed (default {TEST_SEED}: the {TEST.text()})",
+                        )  # fmt: skip
+    parser.add_argument("--candidates", type=int, metavar="N",
+                        help="required: the candidate runs trained for this model's slot "
+                        "(every seed, recipe and fine-tune tried), stated on the card")  # fmt: skip
     parser.add_argument("--final", action="store_true", help="ship the final model, not best/")
     parser.add_argument("--validate", type=int, default=0, metavar="N",
                         help="test best/ and the final model on N validation seeds (from "
-                        f"{VALIDATION_SEED}) and ship the better")  # fmt: skip
+                        "--validation-seed) and ship the better")  # fmt: skip
+    parser.add_argument("--validation-seed", type=int, default=VALIDATION_SEED, metavar="S",
+                        help=f"first validation seed (default {VALIDATION_SEED}: the "
+                        f"{VALIDATION.text()}; never a test seed)")  # fmt: skip
     parser.add_argument("--workers", type=int, default=1, metavar="N",
                         help="evaluation processes (default: 1; the same figures but for "
                         "the computation times m_cef and m_cre)")  # fmt: skip
@@ -372,8 +438,21 @@ def main() -> int:
         parser.error("--final and --validate exclude each other")
     if args.workers < 1:
         parser.error(f"--workers must be at least 1, got {args.workers}")
+    if args.candidates is None:
+        parser.error("--candidates N is required: the candidate runs trained for this slot")
+    if args.candidates < 1:
+        parser.error(f"--candidates must be at least 1 (the run shipped), got {args.candidates}")
+    if args.validate:
+        try:
+            check_not_test(args.validation_seed, args.validate, "--validation-seed")
+        except InputError as exc:
+            parser.error(str(exc))
+    if _range_name(args.seed, args.episodes) != TEST.name:
+        print(f"note: seeds {args.seed}-{args.seed + args.episodes - 1} are not the "
+              f"{TEST.text()}: the card names the range they are in",
+              file=sys.stderr)  # fmt: skip
     card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate,
-                args.workers)  # fmt: skip
+                args.workers, args.candidates, args.validation_seed)  # fmt: skip
     for env_id, f in card["test"]["results"].items():
         print(f"{args.name} on {env_id}: success {100 * f['success']:.0f}%, "
               f"collision {100 * f['collision']:.0f}%, m_psi {f['m_psi']:.3g}, "

@@ -9,8 +9,13 @@
   and collision rates of the last 100 episodes and the time left.
 * :class:`PeriodicEvalCallback`: every ``eval_freq`` steps, saves a checkpoint (model and
   ``VecNormalize`` statistics) and evaluates it with the harness of ``srpb-gym eval`` on
-  seeds never trained on; logs ``eval/...``, appends ``evaluations.csv`` and keeps the
-  best checkpoint in ``best/``.
+  the checkpoint-selection seeds (:data:`srpb_gym.seeds.CHECKPOINT_SELECTION`, never
+  trained on, never test seeds); logs ``eval/...``, appends ``evaluations.csv`` and keeps
+  the best checkpoint in ``best/``.
+* :class:`SeenRewardCallback`: the reward as the learner sees it (normalised by
+  ``VecNormalize``): logs the fraction of clipped rewards (``train/reward_clip_fraction``)
+  and checks at every rollout that a collision still costs the learner more than the
+  shaping can (``train/collision_margin``, :func:`seen_margin`).
 """
 
 from __future__ import annotations
@@ -33,9 +38,10 @@ from srpb_gym.metrics.episode import METRIC_NAMES
 from srpb_gym.models.files import VECNORMALIZE
 from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.reward import TERMS
+from srpb_gym.seeds import CHECKPOINT_SELECTION, check_not_test, check_within
 
-#: the seed of the first evaluation episode: far from the seeds of the test sets
-EVAL_SEED = 1_000_000
+#: the seed of the first evaluation episode (:data:`srpb_gym.seeds.CHECKPOINT_SELECTION`)
+EVAL_SEED = CHECKPOINT_SELECTION.start
 #: metrics whose median over the evaluation episodes is logged and written
 EVAL_METRICS = ("m_psi", "m_fsi", "m_dir", "m_mef", "m_plin", "m_obs")
 EVAL_COLUMNS = ("step", "env", "episodes", "success", "collision", "timeout",
@@ -158,7 +164,9 @@ def _pct(value: float) -> str:
 class PeriodicEvalCallback(BaseCallback):
     """Every ``eval_freq`` environment steps: a checkpoint in ``<run>/checkpoints/<step>``,
     evaluated by the ``srpb-gym eval`` harness on ``env_ids`` (``episodes`` episodes each,
-    seeds from :data:`EVAL_SEED`) into ``<run>/eval/<step>``. The best checkpoint (highest
+    seeds from ``seed``, default :data:`EVAL_SEED`; a test seed, or one outside the
+    checkpoint-selection seeds, is an :class:`~srpb_gym.errors.InputError`) into
+    ``<run>/eval/<step>``. The best checkpoint (highest
     success rate over all evaluated environments, then lowest median ``m_psi``) is copied
     to ``<run>/best``. Only the latest and the best checkpoints are kept, and only the
     evaluation folders of the latest and the best evaluation (each evaluation's figures
@@ -169,8 +177,12 @@ class PeriodicEvalCallback(BaseCallback):
 
     def __init__(self, run_dir: str, env_ids: Sequence[str], eval_freq: int, episodes: int,
                  log: Any = None, progress: bool = True,
-                 env_kwargs: Mapping[str, Any] | None = None) -> None:  # fmt: skip
+                 env_kwargs: Mapping[str, Any] | None = None,
+                 seed: int = EVAL_SEED) -> None:  # fmt: skip
         super().__init__()
+        check_not_test(seed, episodes, "periodic evaluation seed")
+        check_within(CHECKPOINT_SELECTION, seed, episodes, "periodic evaluation seed")
+        self.seed = seed
         self.env_kwargs = dict(env_kwargs or {})
         self.progress = progress
         self.run_dir, self.env_ids = run_dir, list(env_ids)
@@ -200,7 +212,7 @@ class PeriodicEvalCallback(BaseCallback):
         folder = os.path.join(self.run_dir, "eval", f"step_{step:09d}")
         config = spec.resolve_config(
             self.env_ids, policies=[os.path.join(ckpt, MODEL_FILE)], episodes=self.episodes,
-            seed=EVAL_SEED, out=folder,
+            seed=self.seed, out=folder,
             warmup=0, log=None, env_kwargs=self.env_kwargs,
         )  # fmt: skip
         outcome = harness.run_evaluation(config, log=self.log, progress=self.progress)
@@ -247,6 +259,67 @@ class PeriodicEvalCallback(BaseCallback):
         if self._latest is not None and self._latest != latest:
             shutil.rmtree(self._latest, ignore_errors=True)
         self._latest = latest
+
+
+class SeenRewardCallback(BaseCallback):
+    """The reward the learner sees, after ``VecNormalize`` divided it by the spread of the
+    return (sigma) and clipped it: at the end of every rollout, logs the fraction of its
+    steps whose reward was clipped (``train/reward_clip_fraction``) and the smallest
+    margin, over the scenarios, by which a collision costs the learner more than the
+    shaping can (``train/collision_margin``, in units of the normalised reward:
+    :func:`seen_margin`). ``bounds``: each scenario's collision penalty and discounted
+    shaping bound, raw (:attr:`srpb_gym.training.checks.RewardCheck.bounds`; empty: no
+    bound to check). A margin that is not positive is said once through ``log``: then a
+    policy could learn to crash, although the raw reward forbids it."""
+
+    def __init__(self, bounds: Mapping[str, tuple[float, float]], log: Any = None) -> None:
+        super().__init__()
+        self.bounds = dict(bounds)
+        self.log = log or (lambda line: None)
+        self.steps = self.clipped = 0
+        self.margin = math.inf
+        self.warned = False
+
+    def _on_step(self) -> bool:
+        venv = self.model.get_vec_normalize_env()
+        if venv is None or not venv.norm_reward:
+            return True
+        raw = np.asarray(venv.get_original_reward(), dtype=np.float64)
+        self.steps += raw.size
+        self.clipped += int(np.count_nonzero(np.abs(raw) / reward_sigma(venv) > venv.clip_reward))
+        return True
+
+    def _on_rollout_end(self) -> None:
+        venv = self.model.get_vec_normalize_env()
+        if venv is None or not venv.norm_reward:
+            return
+        self.logger.record("train/reward_clip_fraction", self.clipped / max(self.steps, 1))
+        self.steps = self.clipped = 0
+        if not self.bounds:
+            return
+        self.margin = min(seen_margin(venv, p, b) for p, b in self.bounds.values())
+        self.logger.record("train/collision_margin", self.margin)
+        if self.margin <= 0.0 and not self.warned:
+            self.warned = True
+            self.log(f"warning: at step {self.num_timesteps} the learner sees a collision "
+                     f"as costing {self.margin:.3g} less than the shaping bound (the "
+                     f"normalised reward is clipped to {venv.clip_reward:g}): a policy could "
+                     "learn to crash")  # fmt: skip
+
+
+def reward_sigma(venv: Any) -> float:
+    """The spread of the discounted return that ``venv`` (a ``VecNormalize``) divides each
+    reward by."""
+    return float(np.sqrt(venv.ret_rms.var + venv.epsilon))
+
+
+def seen_margin(venv: Any, penalty: float, bound: float) -> float:
+    """How much more a collision costs the learner than the shaping can, as ``venv`` (a
+    ``VecNormalize``) normalises the reward now: the normalised (and clipped) collision
+    penalty less the shaping bound divided by sigma (a clip only shrinks the shaping's
+    steps further). Positive: no policy gains by crashing, as the learner sees it."""
+    seen = -float(venv.normalize_reward(np.array([-penalty]))[0])
+    return seen - bound / reward_sigma(venv)
 
 
 def eval_score(figures: Iterable[Mapping[str, float]]) -> tuple[float, float]:

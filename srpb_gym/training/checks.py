@@ -1,12 +1,14 @@
 """What a training run is checked against before anything is trained: the environment id,
-the reward preset and the env kwargs (:func:`check_env_args`, with :func:`reward_weights`
-the weights each scenario pays) and the environments of the periodic evaluations
+the reward preset and the env kwargs (:func:`check_env_args`, :func:`check_reward` with the
+bounds the learner is checked against while it trains, :func:`reward_weights` the weights
+each scenario pays) and the environments of the periodic evaluations
 (:func:`check_eval_targets`)."""
 
 from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import gymnasium as gym
@@ -16,11 +18,29 @@ from srpb_gym.evaluation.spec import ENV_IDS
 from srpb_gym.reward import PRESET_GAMMA, TERMS, preset_names, shaping_bound
 
 
+@dataclass(frozen=True)
+class RewardCheck:
+    """What :func:`check_reward` found: the reward weights of each scenario (as
+    :func:`reward_weights`) and, when a collision ends the episode, each scenario's
+    collision penalty and the discounted worst case of its shaping
+    (:func:`~srpb_gym.reward.shaping_bound`), raw, by scenario name (empty when collisions
+    go on: no bound is claimed then)."""
+
+    weights: dict[str, dict[str, float]]
+    bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+
 def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
                    gamma: float = PRESET_GAMMA) -> dict[str, dict[str, float]]:  # fmt: skip
     """Refuse an unknown id or preset, env kwargs the environment refuses and a reward that
     the discount ``gamma`` makes gameable (a collision worth more than going on), now.
     Returns the reward weights of each scenario, as :func:`reward_weights`."""
+    return check_reward(env_id, preset, env_kwargs, gamma).weights
+
+
+def check_reward(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
+                 gamma: float = PRESET_GAMMA) -> RewardCheck:  # fmt: skip
+    """:func:`check_env_args`, returning the weights and the bounds of each scenario."""
     if env_id not in gym.registry or not env_id.startswith("SRPB-"):
         ids = sorted(k for k in gym.registry if k.startswith("SRPB-"))
         raise InputError(f"unknown environment {env_id!r}; choose one of: {', '.join(ids)}",
@@ -35,7 +55,8 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
         base = env.unwrapped
         weights_of = _weights_of(base)
         if base.task.collision_mode != "terminate":
-            return weights_of
+            return RewardCheck(weights_of)
+        bounds: dict[str, tuple[float, float]] = {}
         for scenario, task in _scenario_tasks(base):  # a mixture's, each with its weights
             weights = task.reward_fn.weights
             penalty = -float(weights[TERMS.index("collision")])
@@ -48,7 +69,8 @@ def check_env_args(env_id: str, preset: str, env_kwargs: Mapping[str, Any],
                     f"state, not less than the collision penalty {penalty:g}: a policy could "
                     "learn to crash. Lower gamma or the shaping weights, or raise "
                     "'collision'", key="--hyperparams: gamma")  # fmt: skip
-        return weights_of
+            bounds[scenario.name] = (penalty, bound)
+        return RewardCheck(weights_of, bounds)
     finally:
         env.close()
 

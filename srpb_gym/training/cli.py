@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import shlex
 import sys
 from typing import Any
 
 from srpb_gym.errors import InputError
 from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.training.config import parse_overrides, resolve
+from srpb_gym.training.targets import eval_command as command_line
 from srpb_gym.training.targets import eval_setup
 
 INSTALL_HINT = (
@@ -98,15 +98,4 @@ def eval_command(env_id: str, env_kwargs: dict[str, Any], out: str) -> str:
     env_ids, kwargs = eval_setup(env_id, env_kwargs)
     best = os.path.join(out, "best")
     policy = best if os.path.isfile(os.path.join(best, MODEL_FILE)) else out
-    words = ["srpb-gym", "eval", "--env", *env_ids, "--policy", policy]
-    if kwargs:
-        words += ["--env-kwargs"] + [f"{key}={_yaml_flow(value)}" for key, value in kwargs.items()]
-    return shlex.join(words)
-
-
-def _yaml_flow(value: Any) -> str:
-    """``value`` in YAML's flow style, on one line, as ``--env-kwargs`` reads it."""
-    import yaml
-
-    text = yaml.safe_dump(value, default_flow_style=True, width=1 << 30)
-    return text.removesuffix("...\n").strip()  # a scalar document ends with '...'
+    return command_line(env_ids, kwargs, policy)

@@ -14,6 +14,7 @@ Imports neither stable-baselines3 nor torch.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib.resources import files
@@ -24,18 +25,34 @@ from srpb_gym.errors import InputError
 from srpb_gym.models.files import find_model
 from srpb_gym.models.shipped import model_names
 from srpb_gym.planners import PLANNERS
+from srpb_gym.seeds import CHECKPOINT_SELECTION, DEMONSTRATIONS
 from srpb_gym.yaml_io import read_file, read_yaml
 
-__all__ = ["DEFAULT_KEY", "Pretraining", "TrainConfig", "config_file", "load_entries",
-           "parse_overrides", "resolve", "rl_zoo_document", "rl_zoo_entry"]  # fmt: skip
+__all__ = ["DEFAULT_KEY", "REWARD_CLIP", "Pretraining", "TrainConfig", "config_file",
+           "load_entries", "parse_overrides", "resolve", "rl_zoo_document", "rl_zoo_entry",
+           "vecnormalize_kwargs"]  # fmt: skip
 
 DEFAULT_KEY = "default"
 VEC_ENVS = ("subproc", "dummy")
 ACTIVATIONS = ("tanh", "relu")
 #: demonstration episodes of a warm start at most (DAgger rounds included): their seeds
-#: start at ``pretrain.DEMO_SEED`` (2,000,000) and stay below the validation seeds of
-#: ``training.ship`` (3,000,000)
-DEMO_EPISODES_MAX = 1_000_000
+#: stay in :data:`srpb_gym.seeds.DEMONSTRATIONS` (2,000,000-2,999,999)
+DEMO_EPISODES_MAX = DEMONSTRATIONS.size
+#: the clip of the normalised reward: none. ``VecNormalize`` divides a reward by the spread
+#: of the discounted return (sigma) and clips it, by default to +-10; a collision penalty
+#: of 25-120 then reaches the learner as at most 10 sigma, which can be less than what the
+#: shaping may cost (:func:`srpb_gym.reward.shaping_bound`), so a clip would undo the
+#: guarantee that no policy gains by crashing. The rewards are bounded by construction
+#: (every term has a per-step bound), so no clip is needed to keep them finite.
+REWARD_CLIP = math.inf
+#: hyperparameter keys of other tools that ``srpb-gym train`` sets itself, and why
+FIXED_KEYS = {
+    "clip_reward": "srpb-gym train never clips the normalised reward: a clip of k sigma "
+                   "can cut the collision penalty below the shaping bound, so that a policy "
+                   "could gain by crashing (docs/training.md, normalisation)",
+    "norm_reward": "normalize: true normalises observations and rewards (the reward "
+                   "unclipped); normalize: false neither",
+}  # fmt: skip
 #: the keys passed to ``stable_baselines3.PPO`` as they are
 PPO_KEYS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda",
             "clip_range", "ent_coef", "vf_coef", "max_grad_norm")  # fmt: skip
@@ -126,6 +143,10 @@ class TrainConfig:
         _at_least("n_epochs", self.n_epochs, 1)
         _at_least("eval_freq", self.eval_freq, 0)
         _at_least("eval_episodes", self.eval_episodes, 1)
+        if self.eval_episodes > CHECKPOINT_SELECTION.size:
+            raise ValueError(f"eval_episodes: at most {CHECKPOINT_SELECTION.size:,} keep the "
+                             "periodic evaluations in the checkpoint-selection seeds, got "
+                             f"{self.eval_episodes}")  # fmt: skip
         _at_least("torch_threads", self.torch_threads, 0)
         _at_least("pretrain_episodes", self.pretrain_episodes, 1)
         _at_least("pretrain_epochs", self.pretrain_epochs, 1)
@@ -179,6 +200,10 @@ class TrainConfig:
         return Pretraining(**{f.name: getattr(self, PRETRAIN_PREFIX + f.name)
                               for f in dataclasses.fields(Pretraining)})  # fmt: skip
 
+    def vecnormalize_kwargs(self) -> dict[str, Any]:
+        """Keyword arguments of ``VecNormalize`` (:func:`vecnormalize_kwargs`)."""
+        return vecnormalize_kwargs(self.gamma)
+
     def ppo_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``stable_baselines3.PPO`` (without env, seed, logging)."""
         from torch import nn
@@ -195,6 +220,13 @@ class TrainConfig:
         out = dataclasses.asdict(self)
         out["net_arch"] = list(self.net_arch)
         return out
+
+
+def vecnormalize_kwargs(gamma: float) -> dict[str, Any]:
+    """Keyword arguments of the ``VecNormalize`` of a run discounting by ``gamma``:
+    observations and rewards normalised (the return's statistics discounted as the learner
+    discounts), the reward never clipped (:data:`REWARD_CLIP`)."""
+    return {"norm_obs": True, "norm_reward": True, "clip_reward": REWARD_CLIP, "gamma": gamma}
 
 
 def _check_teacher(name: str, teacher: str) -> None:
@@ -243,6 +275,9 @@ def resolve(
     base = _build(merged, env_id if env_id in entries else DEFAULT_KEY, name, lines)
     if not overrides:
         return base
+    fixed = next((key for key in FIXED_KEYS if key in overrides), None)
+    if fixed is not None:
+        raise InputError(FIXED_KEYS[fixed], key=f"--hyperparams: {fixed}")
     try:
         return from_dict(TrainConfig, {**base.as_dict(), **dict(overrides)})
     except InputError as exc:
@@ -252,12 +287,15 @@ def resolve(
 
 def _build(data: Mapping[str, Any], entry: str, name: str, lines: Mapping[str, int]) -> TrainConfig:
     try:
+        fixed = next((key for key in FIXED_KEYS if key in data), None)
+        if fixed is not None:
+            raise InputError(f"{fixed}: {FIXED_KEYS[fixed]}", key=entry)
         return from_dict(TrainConfig, data, entry, name)
     except InputError as exc:
         key, message = exc.key or entry, exc.message
         field_name, sep, rest = message.partition(": ")
-        if key == entry and sep and field_name.split(".")[0] in _FIELDS:  # a field's check
-            key, message = f"{entry}.{field_name}", rest
+        if key == entry and sep and field_name.split(".")[0] in _FIELDS | set(FIXED_KEYS):
+            key, message = f"{entry}.{field_name}", rest  # a field's check
         line = lines.get(key)
         if line is None:  # a value inherited from the default entry
             line = lines.get(f"{DEFAULT_KEY}.{key.split('.', 1)[-1]}", lines.get(entry))
@@ -275,13 +313,29 @@ def rl_zoo_entry(config: TrainConfig, env_kwargs: Mapping[str, Any] | None = Non
         "n_envs": config.n_envs,
         "n_timesteps": float(config.n_timesteps),
         "policy": config.policy,
-        "normalize": config.normalize,
+        "normalize": _rl_zoo_normalize(config),
         **{k: getattr(config, k) for k in PPO_KEYS},
         "policy_kwargs": f"dict(net_arch=dict(pi={arch}, vf={arch}), activation_fn={activation})",
     }
     if env_kwargs:
         entry["env_kwargs"] = dict(env_kwargs)
     return entry
+
+
+def _rl_zoo_normalize(config: TrainConfig) -> str | bool:
+    """The Zoo's ``normalize``: the keyword arguments of ``VecNormalize`` as Python text,
+    which the Zoo evaluates (it sets ``gamma`` itself, from the entry's), so that it does
+    not clip the normalised reward to SB3's default +-10 either."""
+    if not config.normalize:
+        return False
+    kwargs = vecnormalize_kwargs(config.gamma)
+    del kwargs["gamma"]
+    return "dict(" + ", ".join(f"{k}={_python(v)}" for k, v in kwargs.items()) + ")"
+
+
+def _python(value: Any) -> str:
+    """``value`` as Python text (infinity as ``float('inf')``)."""
+    return "float('inf')" if value == math.inf else repr(value)
 
 
 def rl_zoo_document(source: Any = None) -> str:
@@ -298,5 +352,7 @@ def rl_zoo_document(source: Any = None) -> str:
               "--gym-packages srpb_gym \\\n"
               "#       --conf-file configs/train/rl_zoo/ppo.yml --vec-env subproc\n"
               "# The Zoo starts from random weights: the warm start from a classical planner\n"
-              "# (pretrain_* in configs/train/ppo.yaml) is srpb-gym train's own.\n")  # fmt: skip
+              "# (pretrain_* in configs/train/ppo.yaml) is srpb-gym train's own. `normalize`\n"
+              "# never clips the normalised reward, as srpb-gym train (docs/training.md).\n"
+              )  # fmt: skip
     return header + yaml.safe_dump(doc, sort_keys=False, default_flow_style=False)

@@ -8,8 +8,9 @@ start from the same policy, so that what differs between their models is the rew
 doing (the shipped corridor models and the generalist clone ``dwa``; the fformation ones
 clone ``social-dwa``, whose route around the pair the ``srpb`` preset keeps and the
 ``task`` preset wears down towards the pair). :func:`pretrain` drives ``episodes``
-episodes with a teacher, on seeds from :data:`DEMO_SEED` (apart from training,
-periodic-evaluation and test seeds): a planner of :mod:`srpb_gym.planners` or a trained
+episodes with a teacher, on the demonstration seeds (from :data:`DEMO_SEED`:
+:data:`srpb_gym.seeds.DEMONSTRATIONS`, apart from training, checkpoint-selection,
+validation and test seeds): a planner of :mod:`srpb_gym.planners` or a trained
 model (:func:`make_teacher`), and for a mixture of scenarios a teacher per scenario, so
 that specialists are distilled into one policy. Then it:
 
@@ -52,11 +53,11 @@ from srpb_gym.models.files import resolve_model
 from srpb_gym.models.record import lidar_beams_of
 from srpb_gym.planners import PLANNERS, make_planner
 from srpb_gym.planners.base import Planner
+from srpb_gym.seeds import DEMONSTRATIONS, check_not_test, check_within
 from srpb_gym.training.config import Pretraining
 
-#: first seed of the demonstration episodes (training: the run's seed; periodic
-#: evaluation: 1,000,000; tests of shipped models: 10,000)
-DEMO_SEED = 2_000_000
+#: first seed of the demonstration episodes (:data:`srpb_gym.seeds.DEMONSTRATIONS`)
+DEMO_SEED = DEMONSTRATIONS.start
 
 #: a policy that drives instead of the teachers (raw observation -> action)
 Driver = Callable[[np.ndarray], np.ndarray]
@@ -120,7 +121,10 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
     (``info["scenario"]``) instead of ``planner``; an empty ``planner`` then requires a
     teacher for every scenario. ``driver``: a policy (raw observation -> action) that
     drives instead of the teachers, which then only label each step with their action
-    (DAgger); ``reached`` is then the driver's success."""
+    (DAgger); ``reached`` is then the driver's success. Seeds that meet the test seeds, or
+    leave the demonstration seeds, are an :class:`InputError` (``pretrain seed``)."""
+    check_not_test(seed, episodes, "pretrain seed")
+    check_within(DEMONSTRATIONS, seed, episodes, "pretrain seed")
     env = gym.make(env_id, **env_kwargs)
     base = env.unwrapped
     teachers = dict(teachers or {})

@@ -3,7 +3,9 @@
 :func:`train` runs them: :func:`set_up` checks every setting, writes the run folder's first
 files (:mod:`srpb_gym.training.run_folder`), makes ``n_envs`` environments
 (``gym.make(env_id, reward=preset, **env_kwargs)`` in a ``Monitor``, one process each with
-``vec_env: subproc``), wraps them in ``VecNormalize`` when the configuration says so, makes
+``vec_env: subproc``), wraps them in ``VecNormalize`` when the configuration says so
+(:func:`normalize`: the reward never clipped, so that the learner sees a collision's full
+penalty), makes
 the ``stable_baselines3.PPO`` model and starts it from a trained model (``--init``) or from
 demonstrations (:mod:`srpb_gym.training.pretrain`); :func:`learn` trains it with the
 callbacks of :mod:`srpb_gym.training.callbacks`; :func:`save` writes the model and the
@@ -50,15 +52,17 @@ from srpb_gym.models.record import (
     settings_text,
 )
 from srpb_gym.observation import ObservationConfig
+from srpb_gym.seeds import TRAINING, check_within
 from srpb_gym.training.callbacks import (
     EpisodeStatsCallback,
     Outcomes,
     PeriodicEvalCallback,
     ProgressCallback,
+    SeenRewardCallback,
     WallClockLimit,
     save_checkpoint,
 )
-from srpb_gym.training.checks import check_env_args, check_eval_targets
+from srpb_gym.training.checks import check_eval_targets, check_reward
 from srpb_gym.training.config import Pretraining, TrainConfig
 from srpb_gym.training.pretrain import pretrain
 from srpb_gym.training.run_folder import (
@@ -85,7 +89,9 @@ class TrainResult:
 class Run:
     """A run set up (:func:`set_up`): its folder, configuration, model and environments
     (``env_kwargs`` with the preset as ``reward``; ``observation``: their observation
-    settings, which the model records), and what the periodic evaluations run;
+    settings, which the model records), what the periodic evaluations run and each
+    scenario's collision penalty and shaping bound (``bounds``, checked on the reward the
+    learner sees: :class:`~srpb_gym.training.callbacks.SeenRewardCallback`);
     then what :func:`learn` did (its start, wall time, whether Ctrl-C or SIGTERM stopped
     it, its progress bar and wall-clock limit)."""
 
@@ -98,6 +104,7 @@ class Run:
     observation: ObservationConfig
     eval_ids: list[str]
     eval_kwargs: dict[str, Any]
+    bounds: dict[str, tuple[float, float]] = dataclasses.field(default_factory=dict)
     started: float | None = None
     wall: float = 0.0
     interrupted: bool = False
@@ -172,12 +179,12 @@ def set_up(
     model from ``init`` or from the warm start of ``config`` (see :func:`train`). A start
     that fails leaves no run folder behind."""
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecNormalize
 
     env_kwargs = dict(env_kwargs or {})
     if "reward" in env_kwargs:
         raise InputError("set the preset with --reward, not in the env kwargs", key="reward")
-    weights = check_env_args(env_id, preset, env_kwargs, config.gamma)
+    check_within(TRAINING, seed, config.n_envs, "--seed")  # environment i: seed + i
+    checked = check_reward(env_id, preset, env_kwargs, config.gamma)
     eval_ids, eval_kwargs = eval_setup(env_id, env_kwargs) if config.eval_freq > 0 else ([], {})
     check_eval_targets(env_id, eval_ids)
     pretraining = config.pretraining
@@ -195,17 +202,18 @@ def set_up(
         torch.set_num_threads(config.torch_threads)
     out = check_out_dir(out or default_out(env_id, preset))
     os.makedirs(out, exist_ok=True)
-    write_run_files(out, env_id, preset, kwargs, seed, config, argv, weights)
+    write_run_files(out, env_id, preset, kwargs, seed, config, argv, checked.weights)
 
     venv = make_vec_env(env_id, config, kwargs, seed)
     try:
         if config.normalize:
-            venv = VecNormalize(venv, gamma=config.gamma)
+            venv = normalize(venv, config)
         model = PPO(config.policy, venv, seed=seed, device=device, verbose=0,
                     **config.ppo_kwargs())  # fmt: skip
         observation = venv.get_attr("observation_config", [0])[0]
         record_observation(model, observation)
-        run = Run(out, env_id, kwargs, config, model, venv, observation, eval_ids, eval_kwargs)
+        run = Run(out, env_id, kwargs, config, model, venv, observation, eval_ids, eval_kwargs,
+                  checked.bounds)  # fmt: skip
         try:
             if init_model is not None:
                 _start_from(run, *init_model, init_new_observation, log)
@@ -260,7 +268,7 @@ def learn(run: Run, *, progress: bool = True, log: Callable[[str], None] = print
     tensorboard = make_output_format("tensorboard", os.path.join(out, "tb"))
     model.set_logger(Logger(out, [make_output_format("csv", out), tensorboard]))
     outcomes = Outcomes()
-    callbacks: list[Any] = [EpisodeStatsCallback(outcomes)]
+    callbacks: list[Any] = [EpisodeStatsCallback(outcomes), SeenRewardCallback(run.bounds, log)]
     if progress:
         run.bar = ProgressCallback(config.n_timesteps, outcomes)
         callbacks.append(run.bar)
@@ -303,6 +311,15 @@ def _env_factory(env_id: str, kwargs: Mapping[str, Any], quiet_sigint: bool) -> 
         return Monitor(gym.make(env_id, **kwargs), info_keywords=("is_success",))
 
     return make
+
+
+def normalize(venv: Any, config: TrainConfig) -> Any:
+    """``venv`` in the ``VecNormalize`` of a run: observations and rewards normalised, the
+    return's statistics discounted by ``config.gamma``, the reward divided by their sigma
+    and never clipped (:data:`~srpb_gym.training.config.REWARD_CLIP`)."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    return VecNormalize(venv, **config.vecnormalize_kwargs())
 
 
 def make_vec_env(env_id: str, config: TrainConfig, env_kwargs: Mapping[str, Any],

@@ -5,7 +5,8 @@ tests of a shipped model. Imports neither stable-baselines3 nor torch."""
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+import shlex
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
@@ -59,3 +60,24 @@ def eval_env_ids(env_id: str) -> list[str]:
     """The ids a model trained on ``env_id`` with no env kwargs is evaluated on: the id
     itself, or every packaged scenario's id for the mixture (see :func:`eval_setup`)."""
     return eval_setup(env_id)[0]
+
+
+def eval_command(env_ids: Sequence[str], env_kwargs: Mapping[str, Any], policy: str,
+                 **options: int) -> str:  # fmt: skip
+    """The ``srpb-gym eval`` command line that evaluates ``policy`` on ``env_ids`` with
+    ``env_kwargs`` (as :func:`eval_setup` gives them) and ``options`` (``episodes=100``,
+    ``seed=...``, ``warmup=0``: ``--episodes 100`` ...), quoted for a POSIX shell."""
+    words = ["srpb-gym", "eval", "--env", *env_ids, "--policy", policy]
+    for name, value in options.items():
+        words += [f"--{name.replace('_', '-')}", str(value)]
+    if env_kwargs:
+        words += ["--env-kwargs", *(f"{k}={yaml_flow(v)}" for k, v in env_kwargs.items())]
+    return shlex.join(words)
+
+
+def yaml_flow(value: Any) -> str:
+    """``value`` in YAML's flow style, on one line, as ``--env-kwargs`` reads it."""
+    import yaml
+
+    text = yaml.safe_dump(value, default_flow_style=True, width=1 << 30)
+    return text.removesuffix("...\n").strip()  # a scalar document ends with '...'
