@@ -193,9 +193,10 @@ def _subtitle(c: dict[str, Any]) -> str:
     few = ""
     if c["pairs"] < MIN_DIFFERING:
         few = f"; fewer than {MIN_DIFFERING} pairs: no test can reach p < {ALPHA}"
-    return (f"{c['pairs']} pairs by ({by}); left out, without a partner: {left['a']} episodes "
-            f"of {c['a']}, {left['b']} of {c['b']}; {significant} of {tested} tests "
-            f"significant after Holm's correction{few}")  # fmt: skip
+    pairs = f"{c['pairs']} pair{'' if c['pairs'] == 1 else 's'}"
+    return (f"{pairs} by ({by}); episodes without a partner, left out: {left['a']} of "
+            f"{c['a']}, {left['b']} of {c['b']}; {significant} of {tested} tests significant "
+            f"after Holm's correction{few}")  # fmt: skip
 
 
 HEADER = ["metric", "unit", "pairs", "A", "B", "B-A [95 % CI]", "test", "p", "p (Holm)", "sig."]

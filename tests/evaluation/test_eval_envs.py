@@ -13,7 +13,7 @@ from srpb_gym.evaluation import figures, resolve_config
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = "SRPB-Corridor-v0"
-TIMING = ("m_cef", "m_cre")
+TIMING = ("m_cef", "m_cre", "gt_m_cef", "gt_m_cre")  # measured times
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
