@@ -17,13 +17,22 @@ import pytest
 
 from srpb_gym.cli import main
 from srpb_gym.evaluation import resolve_config, run_episode
-from srpb_gym.evaluation.stats import CSV_COLUMNS, cell, latex_escape, number
+from srpb_gym.evaluation.intervals import wilson
+from srpb_gym.evaluation.stats import (
+    CSV_COLUMNS,
+    GT_COLUMNS,
+    PEOPLE_METRICS,
+    cell,
+    latex_escape,
+    metric_rows,
+    number,
+)
 from srpb_gym.metrics import METRIC_NAMES, MetricParams, evaluate
 from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.planners import PLANNERS, GoToGoal
 
 ENV = "SRPB-Corridor-v0"
-TIMING = ("m_cef", "m_cre")
+TIMING = ("m_cef", "m_cre", "gt_m_cef", "gt_m_cre")  # measured times
 PNG = b"\x89PNG\r\n\x1a\n"
 
 
@@ -74,7 +83,10 @@ def test_every_artifact_is_written(run):
     assert summary["episodes_finished"] == 2 and summary["interrupted"] is False
     assert {"episodes", "success_rate", "collision_rate", "timeout_rate"} <= set(entry)
     assert set(entry["metrics"]) == set(METRIC_NAMES)
-    assert {"median", "q1", "q3", "n"} <= set(entry["metrics"]["m_psi"])
+    assert {"median", "q1", "q3", "n", "ci_low", "ci_high"} <= set(entry["metrics"]["m_psi"])
+    assert set(entry["metrics_gt"]) == set(METRIC_NAMES) and "metrics_gt" in summary["statistics"]
+    assert entry["success_rate_ci"] == list(wilson(round(entry["success_rate"] / 50), 2))
+    assert not (run / "paired.json").exists() and not (run / "paired.md").exists()  # 1 planner
 
     config = json.loads((run / "config.json").read_text())
     assert {"envs", "planners", "episodes", "seeds", "semantics", "preset"} <= set(config)
@@ -98,15 +110,24 @@ def test_every_artifact_is_written(run):
 def test_tables_in_three_formats(run, capsys):
     lines = (run / f"table_{ENV}.md").read_text().splitlines()
     assert lines[2] == "| metric | unit | go-to-goal |"
+    assert (
+        lines[0]
+        == f"## {ENV}: median [95 % CI] (rates: Wilson 95 % CI) over 2 episodes per planner"
+    )
     body = [line.split(" | ")[0].strip("| ") for line in lines[4:]]
-    assert body == ["episodes", "success", "collision", "timeout", *METRIC_NAMES]
+    labels = [label for label, _, _ in metric_rows()]
+    assert body == ["episodes", "success", "collision", "timeout", *labels]
+    assert labels[labels.index("m_psi (tracked)") + 1] == "m_psi (ground truth)"
+    assert "m_obs" in labels and len(labels) == len(METRIC_NAMES) + len(PEOPLE_METRICS)
     tex = (run / f"table_{ENV}.tex").read_text()
     assert "\\begin{tabular}{llr}" in tex and "\\end{tabular}" in tex
-    assert "m\\_psi & \\% &" in tex and tex.count("\\\\") == 1 + 4 + len(METRIC_NAMES)
+    assert "m\\_psi (tracked) & \\% &" in tex and tex.count("\\\\") == 1 + 4 + len(labels)
     with open(run / f"table_{ENV}.csv", newline="") as f:
         table = list(csv.reader(f))
-    assert table[0] == ["metric", "unit", *(f"go-to-goal {k}" for k in ("median", "q1", "q3", "n"))]
-    assert [r[0] for r in table[5:]] == list(METRIC_NAMES)
+    assert table[0] == ["metric", "unit", *(f"go-to-goal {k}" for k in ("median", "q1", "q3", "n")),
+                        "go-to-goal ci_low", "go-to-goal ci_high"]  # fmt: skip
+    assert [r[0] for r in table[5:]] == [*METRIC_NAMES, *GT_COLUMNS]
+    assert all(len(r) == 8 for r in table)
     assert cell({"median": 12.3, "q1": 10.1, "q3": 14.0}) == "12.3 [10.1-14.0]"
     # not 0, yet below the last decimal: said so, not printed as 0
     assert cell({"median": 0.000149, "q1": 0.0, "q3": 0.0004}) == "<0.001 [0-<0.001]"
@@ -123,6 +144,14 @@ def test_csv_row_equals_the_recorded_episode(run):
         values = evaluate(record, "paper", MetricParams(**params))
         for name in METRIC_NAMES:  # m_cef, m_cre included: the recorded planning time
             assert _same(float(row[name]), values[name]), name
+        truth = load_record(
+            run / "episodes" / ENV / "go-to-goal" / f"corridor_seed{row['seed']}_gt.npz"
+        )
+        values = evaluate(truth, "paper", MetricParams(**params))
+        for name in METRIC_NAMES:  # the ground truth: the people as they were
+            assert _same(float(row[f"gt_{name}"]), values[name]), name
+            if name not in PEOPLE_METRICS:  # computed from the robot alone: the same
+                assert _same(float(row[f"gt_{name}"]), float(row[name])), name
 
 
 def test_an_episode_replays_alone(run, tmp_path):

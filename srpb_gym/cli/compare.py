@@ -20,7 +20,9 @@ def add_compare_command(subparsers: Any) -> None:
             "Runs made with different --semantics, --preset, metric parameters or --robots "
             "(read from each run's config.json) are refused unless --separate keeps them "
             "apart. A cell over fewer episodes than the 'episodes' row (undefined values "
-            "left out) says so: (n=18/20)."
+            "left out) says so: (n=18/20). Planners of runs that agree are compared with the "
+            "first on the episodes they share, paired by (scenario, seed[, robot]): printed "
+            "after the tables, and with --out written as paired.md and paired.json."
         ),
     )
     p.add_argument("dirs", metavar="DIR", nargs="+", help="evaluation folder (or episodes.csv)")

@@ -26,9 +26,11 @@ def add_eval_command(subparsers: Any) -> None:
         help="evaluate planners and learned policies on scenarios",
         description=(
             "Run every planner on every scenario for N episodes (episode i uses seed S+i), "
-            "print one table per scenario (median [interquartile range] of every SRPB metric, "
-            "success, collision and timeout rates) and write episodes, tables, figures and "
-            "the configuration into --out. Without --env/--planner/--policy: "
+            "print one table per scenario (median [95 % CI] of every SRPB metric, from the "
+            "tracked people and for the social metrics also from ground truth; success, "
+            "collision and timeout rates [Wilson 95 % CI]), with two planners or more paired "
+            "comparisons against the first (paired.md, paired.json), and write episodes, "
+            "tables, figures and the configuration into --out. Without --env/--planner/--policy: "
             "SRPB-Corridor-v0 with every registered planner, 5 episodes."
         ),
         epilog=f"environment ids: {', '.join(ENV_IDS)}; or a scenario file "

@@ -19,7 +19,10 @@ script), after an untimed warm-up of every planner in every process; runs spread
 processes give the same episodes. With ``robots=N`` (N > 1) every episode runs in the
 PettingZoo environment with N robots (:mod:`srpb_gym.evaluation.multi`): a row per (episode,
 robot) and per-robot and pooled table columns. An interrupted run resumes in its own folder
-(``resume=True``); runs made with different metric settings are not merged silently. See
+(``resume=True``); runs made with different metric settings are not merged silently. Every
+episode keeps its metrics from the tracked people and from ground truth; the tables give
+95 % intervals (:mod:`~srpb_gym.evaluation.intervals`) and, with two planners or more,
+paired comparisons (:mod:`~srpb_gym.evaluation.paired`). See
 ``docs/evaluation.md``. ``srpb-gym eval`` and ``srpb-gym compare`` are the command-line
 front ends. matplotlib, torch, stable-baselines3 and pygame are imported only by the
 functions that need them.

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from srpb_gym.errors import InputError
-from srpb_gym.evaluation import figures, stats
+from srpb_gym.evaluation import figures, paired, stats
 from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.outdir import (
     check_out_dir,
@@ -136,13 +136,21 @@ def compare_runs(
     text = stats.tables_text(summary)
     if notes:
         text += "\n\n" + "\n".join(notes)
+    # runs of other settings score other things: their planners are not paired
+    comparisons = [] if notes else paired.paired_comparisons(merged)
+    if notes:
+        text += "\n\nno paired comparisons: the runs were made with different settings"
+    elif comparisons:
+        text += "\n\n" + paired.paired_text(comparisons)
     if out is None:
         return text, []
     check_out_dir(out)
     files = [os.path.join(out, n) for n in ("episodes.csv", "summary.json", "config.json")]
     stats.write_episodes(files[0], merged)
-    write_json(files[1], {"runs": list(dirs), "notes": notes, "results": summary})
+    write_json(files[1], {"runs": list(dirs), "notes": notes, "statistics": stats.STATISTICS,
+                          "results": summary})  # fmt: skip
     write_json(files[2], _merged_config(runs, notes))
+    files += paired.write_paired(comparisons, out)
     return text, files + stats.write_tables(summary, out) + _compare_bars(summary, out)
 
 
@@ -184,6 +192,7 @@ def _compare_bars(summary: stats.Summary, out: str) -> list[str]:
     paths = []
     for env_id, planners in summary.items():
         path = os.path.join(out, f"bars_{env_id}.png")
-        figures.bar_chart(planners, f"{env_id}: median and interquartile range", path)
+        figures.bar_chart(planners, f"{env_id}: median with its 95 % interval (hatched: "
+                          f"ground truth)", path, stats.PEOPLE_METRICS)  # fmt: skip
         paths.append(path)
     return paths

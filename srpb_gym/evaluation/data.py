@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -186,10 +187,13 @@ class Task:
 
 @dataclass
 class EpisodeResult:
-    """One finished episode: its outcome and every SRPB metric (``info["srpb/<m>"]`` of
-    the last step). ``record``: the ``.npz`` record, relative to the output folder.
-    ``robot``: the robot's index in a multi-robot episode, ``None`` in a single-robot run.
-    ``scenario``: the episode's scenario (for ``SRPB-Mix-v0`` the one drawn)."""
+    """One finished episode: its outcome and every SRPB metric, ``metrics`` from the people
+    the robot tracked (``info["srpb/<m>"]`` of the last step) and ``ground_truth`` from the
+    people as they were (``info["srpb_gt/<m>"]``; a metric absent, e.g. read from an
+    ``episodes.csv`` written before it was kept, is not computed: :meth:`truth` gives NaN).
+    ``record``: the ``.npz`` record, relative to the output folder. ``robot``: the robot's
+    index in a multi-robot episode, ``None`` in a single-robot run. ``scenario``: the
+    episode's scenario (for ``SRPB-Mix-v0`` the one drawn)."""
 
     env: str
     planner: str
@@ -203,6 +207,15 @@ class EpisodeResult:
     video: str = ""
     robot: int | None = None
     scenario: str = ""
+    ground_truth: dict[str, float] = field(default_factory=dict)
+
+    def truth(self, metric: str) -> float:
+        """The ground-truth value of ``metric`` (NaN when not computed)."""
+        return float(self.ground_truth.get(metric, math.nan))
+
+    def value(self, metric: str, gt: bool = False) -> float:
+        """The tracked (or with ``gt`` the ground-truth) value of ``metric``."""
+        return self.truth(metric) if gt else float(self.metrics[metric])
 
 
 def tasks_of(config: EvalConfig) -> list[Task]:

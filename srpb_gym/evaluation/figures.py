@@ -4,8 +4,9 @@ imported only when drawing or writing.
 * :func:`trajectory_plot`: in the style of the SRPB paper's Fig. 8, the robot paths of every
   episode of one planner in one scenario, coloured by time (colour bar), over the walls,
   with the people's tracked positions faint and the F-formations' O-spaces outlined.
-* :func:`bar_chart`: one panel per metric, a bar per planner (median, interquartile range
-  as the error bar), for one scenario.
+* :func:`bar_chart`: one panel per metric, a bar per planner (median, its 95 % interval as
+  the error bar; rates with their Wilson interval), for one scenario; the metrics computed
+  from the people get a second, hatched bar per planner: from ground truth.
 * :class:`VideoWriter`: ``env.render()`` frames as MP4 through imageio's ffmpeg plugin when
   it is installed (``imageio`` and ``imageio-ffmpeg``), else as an animated GIF (Pillow,
   one palette shared by every frame: the renderer draws few colours).
@@ -142,10 +143,17 @@ def _draw_path(ax: Any, record: EpisodeRecord, norm: Any, line_collection: Any) 
     return lines
 
 
-def bar_chart(planners: dict[str, dict[str, Any]], title: str, path: str) -> None:
-    """One panel per metric (and the outcome rates), a bar per planner: median with the
-    interquartile range as the error bar; ``planners`` is one env's summary."""
+def bar_chart(
+    planners: dict[str, dict[str, Any]], title: str, path: str, truth: Sequence[str] = ()
+) -> None:
+    """One panel per metric (and the outcome rates), a bar per planner: the median with its
+    95 % interval (``ci_low``, ``ci_high``) as the error bar, a rate with its Wilson
+    interval; ``planners`` is one env's summary. The metrics of ``truth`` get two bars per
+    planner: from the tracked people (plain) and from ground truth (hatched,
+    ``metrics_gt``)."""
     plt = pyplot()
+    from matplotlib.patches import Patch
+
     names = list(planners)
     panels = [f"{o}_rate" for o in ("success", "collision", "timeout")] + list(METRIC_NAMES)
     cols = 6
@@ -156,7 +164,15 @@ def bar_chart(planners: dict[str, dict[str, Any]], title: str, path: str) -> Non
     x = np.arange(len(names))
     for ax, key in zip(axes.flat, panels):
         median, low, high = _bars(planners, names, key)
-        ax.bar(x, median, color=colors, yerr=[low, high], capsize=3, error_kw={"lw": 0.8})
+        if key in truth:
+            gt = _bars(planners, names, key, "metrics_gt")
+            ax.bar(x - 0.2, median, 0.4, color=colors, yerr=[low, high], capsize=2,
+                   error_kw={"lw": 0.8})  # fmt: skip
+            ax.bar(x + 0.2, gt[0], 0.4, color=colors, yerr=[gt[1], gt[2]], capsize=2,
+                   error_kw={"lw": 0.8}, hatch="///", alpha=0.55, edgecolor="0.2")  # fmt: skip
+            median, high = np.concatenate([median, gt[0]]), np.concatenate([high, gt[2]])
+        else:
+            ax.bar(x, median, color=colors, yerr=[low, high], capsize=3, error_kw={"lw": 0.8})
         unit = "%" if key.endswith("_rate") else METRIC_UNITS[key]
         ax.set_title(f"{key} [{unit}]", fontsize=9)
         ax.set_xticks(x, names, rotation=30, ha="right", fontsize=7)
@@ -164,6 +180,11 @@ def bar_chart(planners: dict[str, dict[str, Any]], title: str, path: str) -> Non
         _y_range(ax, median, high)
     for ax in axes.flat[len(panels) :]:
         ax.axis("off")
+    if truth:
+        fig.legend(handles=[Patch(facecolor="0.6", label="tracked people"),
+                            Patch(facecolor="0.6", alpha=0.55, hatch="///", edgecolor="0.2",
+                                  label="ground truth")], loc="lower right", fontsize=8,
+                   frameon=False)  # fmt: skip
     fig.suptitle(title)
     fig.savefig(path, dpi=100)
     plt.close(fig)
@@ -178,24 +199,22 @@ def _y_range(ax: Any, median: np.ndarray, high: np.ndarray) -> None:
         ax.set_ylim(bottom=min(0.0, float(np.min(median[finite]))))
 
 
-def _bars(planners: dict[str, dict[str, Any]], names: list[str], key: str):
-    """Heights and lower/upper error lengths of one panel (NaN where undefined)."""
+def _bars(
+    planners: dict[str, dict[str, Any]], names: list[str], key: str, group: str = "metrics"
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Heights and lower/upper error lengths (to the 95 % interval's bounds; 0 where it is
+    not computed) of one panel (NaN where undefined); ``group``: ``metrics`` (tracked) or
+    ``metrics_gt`` (ground truth)."""
     median, low, high = [], [], []
     for name in names:
         if key.endswith("_rate"):
-            median.append(planners[name][key])
-            low.append(0.0)
-            high.append(0.0)
-            continue
-        s = planners[name]["metrics"][key]
-        if s["median"] is None:
-            median.append(np.nan)
-            low.append(0.0)
-            high.append(0.0)
+            value, (lo, hi) = planners[name][key], planners[name].get(f"{key}_ci") or (None, None)
         else:
-            median.append(s["median"])
-            low.append(s["median"] - s["q1"])
-            high.append(s["q3"] - s["median"])
+            s = planners[name].get(group, {}).get(key) or {"median": None}
+            value, lo, hi = s["median"], s.get("ci_low"), s.get("ci_high")
+        median.append(np.nan if value is None else value)
+        low.append(0.0 if value is None or lo is None else value - lo)
+        high.append(0.0 if value is None or hi is None else hi - value)
     return np.array(median), np.array(low), np.array(high)
 
 

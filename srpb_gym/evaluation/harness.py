@@ -3,7 +3,8 @@
 An evaluation writes into its output folder ``config.json`` (the resolved configuration),
 ``command.txt``, ``versions.json``, ``episodes.csv`` (a row per episode, written as each one
 finishes), ``episodes/<env id>/<planner>/`` (SRPB native logs and ``.npz`` records),
-``summary.json``, ``table_<env>.md|.csv|.tex``, ``trajectories_<env>_<planner>.png``,
+``summary.json``, ``table_<env>.md|.csv|.tex``, with two planners or more ``paired.json``
+and ``paired.md`` (:mod:`srpb_gym.evaluation.paired`), ``trajectories_<env>_<planner>.png``,
 ``bars_<env>.png`` and, when asked, ``videos/``. A multi-robot run (``config.robots`` > 1)
 has a row per (episode, robot) and per-robot and pooled columns in its tables. With
 ``config.resume`` it continues the interrupted run in that folder
@@ -25,7 +26,7 @@ from importlib import metadata
 from typing import Any
 
 from srpb_gym._version import __version__
-from srpb_gym.evaluation import figures, outdir, stats
+from srpb_gym.evaluation import figures, outdir, paired, stats
 from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, tasks_of
 from srpb_gym.evaluation.outdir import write_json
 from srpb_gym.evaluation.pool import remove_unfinished, run_tasks
@@ -40,6 +41,7 @@ VERSIONED: tuple[tuple[str, str], ...] = (
     ("imageio", "imageio"), ("pygame-ce", "pygame-ce"), ("tqdm", "tqdm"),
 )  # fmt: skip
 """(name in versions.json, distribution name); absent distributions are left out."""
+BARS = "median with its 95 % interval (hatched: ground truth)"
 
 
 @dataclass
@@ -136,13 +138,16 @@ def _write_summary(outcome: RunOutcome) -> list[str]:
     summary = stats.summarize(outcome.results)
     doc = {"interrupted": outcome.interrupted, "episodes_planned": outcome.planned,
            "episodes_finished": outcome.finished, "semantics": config.semantics,
-           "preset": config.preset, "results": summary}  # fmt: skip
+           "preset": config.preset, "statistics": stats.STATISTICS,
+           "results": summary}  # fmt: skip
     if config.robots > 1:
         doc = {"robots": config.robots, **doc}
     path = os.path.join(out, "summary.json")
     write_json(path, doc)
-    outcome.text = stats.tables_text(summary)
-    return [path, *stats.write_tables(summary, out)]
+    comparisons = paired.paired_comparisons(outcome.results)
+    outcome.text = "\n\n".join(t for t in (stats.tables_text(summary),
+                                            paired.paired_text(comparisons)) if t)  # fmt: skip
+    return [path, *stats.write_tables(summary, out), *paired.write_paired(comparisons, out)]
 
 
 def write_run_info(config: EvalConfig) -> tuple[list[str], dict[str, Any]]:
@@ -268,7 +273,7 @@ def draw_figures(
                 paths.append(path)
         summary = stats.summarize([r for rows in planners.values() for r in rows])[env_id]
         path = os.path.join(config.out, f"bars_{env_id}.png")
-        figures.bar_chart(summary, f"{env_id}: median and interquartile range", path)
+        figures.bar_chart(summary, f"{env_id}: {BARS}", path, stats.PEOPLE_METRICS)
         paths.append(path)
     return paths
 

@@ -6,7 +6,7 @@ each robot with an instance of its own (its own ``reset(knowledge)`` and ``act``
 learned policy is one model shared by every robot (its normalisation statistics applied
 to each robot's observation, as for one robot). Each robot's ``act`` is timed and handed
 over with ``set_planning_time({agent: seconds})``. A robot leaves when it terminates or is
-truncated, with its SRPB episode metrics in its last info: one
+truncated, with its SRPB episode metrics (tracked and ground truth) in its last info: one
 :class:`~srpb_gym.evaluation.data.EpisodeResult` per robot.
 """
 
@@ -129,5 +129,6 @@ def run_multi_task(
             task.env, name, task.seed, bool(info["is_success"]), out["collision"],
             out["timeout"], {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
             os.path.relpath(record, config.out), clip, robot, config.scenario_name(task.env),
+            {m: float(info[f"srpb_gt/{m}"]) for m in METRIC_NAMES},
         ))  # fmt: skip
     return results

@@ -142,6 +142,7 @@ class Workspace:
             task.env, name, task.seed, bool(info["is_success"]), out["collision"], out["timeout"],
             {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
             os.path.relpath(record, self.config.out), scenario=base.scenario.name,
+            ground_truth={m: float(info[f"srpb_gt/{m}"]) for m in METRIC_NAMES},
         )  # fmt: skip
         if video is not None:
             result.video = os.path.relpath(video.close(), self.config.out)

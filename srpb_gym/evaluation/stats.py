@@ -1,16 +1,24 @@
 """Per-episode rows, their statistics and the comparison tables.
 
 ``episodes.csv`` holds one row per episode: ``env``, ``planner``, ``seed``, ``is_success``,
-``collision``, ``timeout`` (0/1), then every metric of :data:`METRIC_NAMES` at full
-precision (``repr`` of the float, ``nan`` when undefined), then ``scenario``: the episode's
-scenario (for ``SRPB-Mix-v0`` the one drawn; files without the column read as empty). A
-multi-robot run has one row per (episode, robot), with a ``robot`` column (the robot's
-index) after ``seed``. The tables follow the SRPB paper's Table 4: one per scenario, rows =
-metrics with units (after the episode count and the success, collision and timeout rates
-in %), columns = planners, cells = median over the episodes with the interquartile range,
-``12.3 [10.1-14.0]``. In a multi-robot run each planner has a column per robot
-(``dwa/robot_0``, ...) and a pooled column (``dwa/pooled``: every robot's episodes
-together).
+``collision``, ``timeout`` (0/1), then every metric of :data:`METRIC_NAMES` from the
+people the robot tracked at full precision (``repr`` of the float, ``nan`` when undefined),
+then the same metrics from ground truth (:data:`GT_COLUMNS`, ``gt_m_psi``, ...), then
+``scenario``: the episode's scenario (for ``SRPB-Mix-v0`` the one drawn). A file without
+the ``scenario`` column reads as empty scenarios, one without the ground-truth columns (an
+older run) as ground truth not computed (NaN). A multi-robot run has one row per (episode,
+robot), with a ``robot`` column (the robot's index) after ``seed``.
+
+The tables follow the SRPB paper's Table 4: one per scenario, rows = metrics with units
+(after the episode count and the success, collision and timeout rates in % with their
+Wilson 95 % intervals, ``94 [87.5-97.2]``), columns = planners, cells = median over the
+episodes with the percentile bootstrap 95 % interval of the median, ``12.3 [11.0-13.5]``
+(:mod:`~srpb_gym.evaluation.intervals`). The metrics that depend on the people
+(:data:`PEOPLE_METRICS`) have two rows, ``m_psi (tracked)`` and ``m_psi (ground truth)``;
+the others are computed from the robot alone and read the same either way. The
+interquartile range stays in the CSV table and ``summary.json``. In a multi-robot run each
+planner has a column per robot (``dwa/robot_0``, ...) and a pooled column (``dwa/pooled``:
+every robot's episodes together).
 """
 
 from __future__ import annotations
@@ -27,11 +35,16 @@ import numpy as np
 
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
+from srpb_gym.evaluation.intervals import bootstrap_median, finite, wilson
 from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
 from srpb_gym.metrics.io_native import read_text
 
+GT_PREFIX = "gt_"
+GT_COLUMNS: tuple[str, ...] = tuple(f"{GT_PREFIX}{m}" for m in METRIC_NAMES)
+"""The ground-truth metric columns of ``episodes.csv``: ``gt_<metric>``."""
 CSV_COLUMNS: tuple[str, ...] = (
-    "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES, "scenario",
+    "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES, *GT_COLUMNS,
+    "scenario",
 )  # fmt: skip
 ROBOT_COLUMNS: tuple[str, ...] = (*CSV_COLUMNS[:3], "robot", *CSV_COLUMNS[3:])
 """The columns of a multi-robot run's ``episodes.csv``."""
@@ -40,6 +53,21 @@ OUTCOMES: tuple[tuple[str, str], ...] = (
     ("success", "is_success"), ("collision", "collision"), ("timeout", "timeout"),
 )  # fmt: skip
 
+PEOPLE_METRICS: tuple[str, ...] = tuple(
+    m for m in METRIC_NAMES if m.split("_")[1] in ("psi", "fsi", "dir")
+)
+"""The metrics computed from the people (m_psi, m_fsi, m_dir and their variants): the only
+ones whose tracked and ground-truth values differ; the tables show both."""
+TRACKED, GROUND_TRUTH = "tracked", "ground truth"
+STATISTICS = {
+    "metrics": "from the people the robot tracked (what SRPB scores on a real robot)",
+    "metrics_gt": "from ground truth (what the people experienced)",
+    "median": "over the finite values; q1, q3: quartiles (linear interpolation)",
+    "ci_low, ci_high": "percentile bootstrap 95 % interval of the median: 10000 resamples, "
+    "numpy default_rng(0); null from fewer than 2 values",
+    "<outcome>_rate_ci": "Wilson score 95 % interval of the rate, %",
+}
+"""What the statistics of ``summary.json`` are (its ``statistics`` key)."""
 Summary = dict[str, dict[str, dict[str, Any]]]
 """env id -> planner -> statistics (see :func:`summarize`)."""
 
@@ -50,8 +78,9 @@ def csv_row(result: EpisodeResult, robots: bool = False) -> list[str]:
     empty for a single-robot row)."""
     flags = [str(int(v)) for v in (result.is_success, result.collision, result.timeout)]
     values = [repr(float(result.metrics[m])) for m in METRIC_NAMES]
+    truth = [repr(result.truth(m)) for m in METRIC_NAMES]
     robot = ["" if result.robot is None else str(result.robot)] if robots else []
-    return [result.env, result.planner, str(result.seed), *robot, *flags, *values,
+    return [result.env, result.planner, str(result.seed), *robot, *flags, *values, *truth,
             result.scenario]  # fmt: skip
 
 
@@ -97,8 +126,9 @@ def read_episodes(path: str) -> list[EpisodeResult]:
 def parse_episodes(text: str, path: str) -> list[EpisodeResult]:
     """The rows of ``episodes.csv`` text read from ``path``: every row checked (its number
     of values, 0/1 flags, an integer seed (and robot), numbers, each (episode, robot)
-    once); a metric column the file lacks reads as not computed (NaN), an empty ``robot``
-    as a single-robot row. :class:`InputError` names file and line."""
+    once); a metric column the file lacks (a ground-truth column of an older run) reads as
+    not computed (NaN), an empty ``robot`` as a single-robot row. :class:`InputError` names
+    file and line."""
     reader = csv.reader(io.StringIO(text, newline=""))
     rows: list[tuple[int, list[str]]] = []
     try:
@@ -144,13 +174,9 @@ def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> Epi
     except ValueError:
         raise InputError(f"column seed is {row[col['seed']]!r}, expected an integer", path,
                          line) from None  # fmt: skip
-    metrics = {}
-    for m in METRIC_NAMES:
-        try:
-            metrics[m] = float(row[col[m]]) if m in col else math.nan
-        except ValueError:
-            raise InputError(f"column {m} is {row[col[m]]!r}, expected a number", path,
-                             line) from None  # fmt: skip
+    metrics = {m: _number(row, col, m, path, line) for m in METRIC_NAMES}
+    truth = {m: _number(row, col, f"{GT_PREFIX}{m}", path, line) for m in METRIC_NAMES
+             if f"{GT_PREFIX}{m}" in col}  # fmt: skip
     env, planner = row[col["env"]], row[col["planner"]]
     if not env or not planner:
         raise InputError("empty env or planner", path, line)
@@ -160,7 +186,17 @@ def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> Epi
                          path, line)  # fmt: skip
     scenario = row[col["scenario"]] if "scenario" in col else ""
     return EpisodeResult(env, planner, seed, *flags, metrics, robot=int(robot) if robot else None,
-                         scenario=scenario)  # fmt: skip
+                         scenario=scenario, ground_truth=truth)  # fmt: skip
+
+
+def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int) -> float:
+    if name not in col:
+        return math.nan
+    try:
+        return float(row[col[name]])
+    except ValueError:
+        raise InputError(f"column {name} is {row[col[name]]!r}, expected a number", path,
+                         line) from None  # fmt: skip
 
 
 # ---------------------------------------------------------------------------- statistics
@@ -173,21 +209,26 @@ def group(results: Iterable[EpisodeResult]) -> dict[str, dict[str, list[EpisodeR
 
 
 def describe(values: Sequence[float]) -> dict[str, float | int | None]:
-    """Median, quartiles (linear interpolation), mean, std, min, max of the finite values;
-    ``n``: how many are finite. Statistics of no value are ``None``."""
-    x = np.asarray(values, dtype=np.float64)
-    x = x[np.isfinite(x)]
+    """Median, quartiles (linear interpolation), mean, std, min, max of the finite values,
+    and ``ci_low``, ``ci_high``: the percentile bootstrap 95 % interval of the median
+    (:func:`~.intervals.bootstrap_median`; ``None`` from fewer than two values); ``n``: how
+    many are finite. Statistics of no value are ``None``."""
+    x = finite(values)
     if x.size == 0:
-        return {"n": 0, **dict.fromkeys(("median", "q1", "q3", "mean", "std", "min", "max"))}
+        return {"n": 0, **dict.fromkeys(("median", "q1", "q3", "mean", "std", "min", "max",
+                                         "ci_low", "ci_high"))}  # fmt: skip
     q1, median, q3 = np.percentile(x, [25.0, 50.0, 75.0])
+    ci = bootstrap_median(x) or (None, None)
     return {"n": int(x.size), "median": float(median), "q1": float(q1), "q3": float(q3),
             "mean": float(x.mean()), "std": float(x.std()), "min": float(x.min()),
-            "max": float(x.max())}  # fmt: skip
+            "max": float(x.max()), "ci_low": ci[0], "ci_high": ci[1]}  # fmt: skip
 
 
 def summarize(results: Iterable[EpisodeResult]) -> Summary:
     """Per env and planner: ``episodes``, ``success_rate``, ``collision_rate``,
-    ``timeout_rate`` (%) and ``metrics`` (name -> :func:`describe`).
+    ``timeout_rate`` (%) with their Wilson 95 % intervals (``success_rate_ci``, ...:
+    ``[low, high]`` in %), ``metrics`` (name -> :func:`describe`, from the tracked people)
+    and ``metrics_gt`` (the same from ground truth).
 
     A planner whose rows are of several robots gets an entry per robot,
     ``<planner>/robot_<r>``, and a pooled one, ``<planner>/pooled`` (every robot's
@@ -215,8 +256,11 @@ def _entry(
     if planner is not None:
         entry |= {"planner": planner, "robot": robot}
     for label, attr in OUTCOMES:
-        entry[f"{label}_rate"] = 100.0 * sum(getattr(r, attr) for r in rows) / len(rows)
+        count = sum(bool(getattr(r, attr)) for r in rows)
+        entry[f"{label}_rate"] = 100.0 * count / len(rows)
+        entry[f"{label}_rate_ci"] = wilson(count, len(rows))
     entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
+    entry["metrics_gt"] = {m: describe([r.truth(m) for r in rows]) for m in METRIC_NAMES}
     return entry
 
 
@@ -240,14 +284,24 @@ def rate(value: float) -> str:
     return f"{value:.1f}".rstrip("0").rstrip(".")
 
 
-def cell(stats: dict[str, Any], episodes: int | None = None) -> str:
-    """``median [q1-q3]`` (``[q1, q3]`` when q1 is negative), followed by ``(n=18/20)``
+def interval(low: float | None, high: float | None, fmt: Any = None) -> str:
+    """``[low-high]`` (``[low, high]`` when low is negative), ``[n/a]`` for none."""
+    fmt = fmt or number
+    if low is None or high is None:
+        return "[n/a]"
+    return f"[{fmt(low)}-{fmt(high)}]" if low >= 0 else f"[{fmt(low)}, {fmt(high)}]"
+
+
+def cell(
+    stats: dict[str, Any], episodes: int | None = None, keys: tuple[str, str] = ("q1", "q3")
+) -> str:
+    """``median [q1-q3]`` (``[q1, q3]`` when q1 is negative; ``keys``: the bounds shown,
+    ``("ci_low", "ci_high")`` for the median's 95 % interval), followed by ``(n=18/20)``
     when the statistics are over fewer values (``stats["n"]``, the finite ones) than the
     ``episodes``; ``n/a`` when no episode has a value."""
     if stats["median"] is None:
         return "n/a"
-    q1, q3 = number(stats["q1"]), number(stats["q3"])
-    iqr = f"[{q1}-{q3}]" if stats["q1"] >= 0 else f"[{q1}, {q3}]"
+    iqr = interval(stats.get(keys[0]), stats.get(keys[1]))
     n = stats.get("n")
     fewer = ""
     if episodes is not None and n is not None and n != episodes:
@@ -255,14 +309,37 @@ def cell(stats: dict[str, Any], episodes: int | None = None) -> str:
     return f"{number(stats['median'])} {iqr}{fewer}"
 
 
+def rate_cell(entry: dict[str, Any], label: str) -> str:
+    """``94 [87.5-97.2]``: a rate of ``entry`` (a planner's summary) with its Wilson 95 %
+    interval."""
+    ci = entry.get(f"{label}_rate_ci") or (None, None)
+    return f"{rate(entry[f'{label}_rate'])} {interval(*ci, fmt=rate)}"
+
+
+def metric_rows() -> list[tuple[str, str, bool]]:
+    """(row label, metric, ground truth) of the metric rows of a table: the metrics of
+    :data:`PEOPLE_METRICS` twice, ``m_psi (tracked)`` and ``m_psi (ground truth)``."""
+    out = []
+    for m in METRIC_NAMES:
+        if m in PEOPLE_METRICS:
+            out += [(f"{m} ({TRACKED})", m, False), (f"{m} ({GROUND_TRUTH})", m, True)]
+        else:
+            out.append((m, m, False))
+    return out
+
+
 def table(planners: dict[str, dict[str, Any]]) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of one scenario's table (cells as text)."""
+    """Header and rows of one scenario's table (cells as text): rates with their Wilson
+    intervals, metrics as median [95 % interval of the median]."""
     names = list(planners)
     rows = [["episodes", "-", *(str(planners[p]["episodes"]) for p in names)]]
-    rows += [[label, "%", *(rate(planners[p][f"{label}_rate"]) for p in names)]
+    rows += [[label, "%", *(rate_cell(planners[p], label) for p in names)]
              for label, _ in OUTCOMES]  # fmt: skip
-    rows += [[m, METRIC_UNITS[m], *(cell(planners[p]["metrics"][m], planners[p]["episodes"])
-                                     for p in names)] for m in METRIC_NAMES]  # fmt: skip
+    for label, m, gt in metric_rows():
+        key = "metrics_gt" if gt else "metrics"
+        rows.append([label, METRIC_UNITS[m], *(
+            cell(planners[p][key][m], planners[p]["episodes"], ("ci_low", "ci_high"))
+            for p in names)])  # fmt: skip
     return ["metric", "unit", *names], rows
 
 
@@ -303,17 +380,28 @@ def format_latex(title: str, header: list[str], rows: list[list[str]]) -> str:
 
 def table_csv(path: str, planners: dict[str, dict[str, Any]]) -> None:
     """The table as numbers: metric, unit, then median, q1, q3 and n (the episodes with a
-    value) per planner (rates and counts in the median column, blank where undefined)."""
+    value) per planner (rates and counts in the median column, blank where undefined), then
+    ci_low and ci_high per planner (the 95 % interval: Wilson for a rate, bootstrap for a
+    median). Rows: the counts and rates, the tracked metrics (``m_psi``), then the
+    ground-truth ones (``gt_m_psi``)."""
     names = list(planners)
-    keys = ("median", "q1", "q3", "n")
+    keys, ci = ("median", "q1", "q3", "n"), ("ci_low", "ci_high")
     header = ["metric", "unit"] + [f"{p} {s}" for p in names for s in keys]
-    rows = [["episodes", "-", *(v for p in names for v in (planners[p]["episodes"], "", "", ""))]]
-    rows += [[label, "%", *(v for p in names
-                            for v in (planners[p][f"{label}_rate"], "", "", ""))]
-             for label, _ in OUTCOMES]  # fmt: skip
-    for m in METRIC_NAMES:
-        stats = [planners[p]["metrics"][m] for p in names]
-        rows.append([m, METRIC_UNITS[m], *(_blank(s[k]) for s in stats for k in keys)])
+    header += [f"{p} {s}" for p in names for s in ci]
+    count = ("", "", "")
+    rows = [["episodes", "-", *(v for p in names for v in (planners[p]["episodes"], *count)),
+             *("" for _ in names for _ in ci)]]  # fmt: skip
+    for label, _ in OUTCOMES:
+        bounds = [planners[p].get(f"{label}_rate_ci") or ("", "") for p in names]
+        rows.append([label, "%", *(v for p in names
+                                   for v in (planners[p][f"{label}_rate"], "", "", "")),
+                     *(v for b in bounds for v in b)])  # fmt: skip
+    for prefix, key in (("", "metrics"), (GT_PREFIX, "metrics_gt")):
+        for m in METRIC_NAMES:
+            stats = [planners[p][key][m] for p in names]
+            rows.append([f"{prefix}{m}", METRIC_UNITS[m],
+                         *(_blank(s.get(k)) for s in stats for k in keys),
+                         *(_blank(s.get(k)) for s in stats for k in ci)])  # fmt: skip
     with open(path, "w", newline="", encoding="utf-8") as f:
         csv.writer(f).writerows([header, *rows])
 
@@ -322,16 +410,19 @@ def _blank(value: float | None) -> Any:
     return "" if value is None else value
 
 
+WHAT = "median [95 % CI] (rates: Wilson 95 % CI)"
+
+
 def title_of(env: str, planners: dict[str, dict[str, Any]]) -> str:
     robots = [p for p in planners.values() if isinstance(p.get("robot"), int)]
     if not robots:
         counts = sorted({p["episodes"] for p in planners.values()})
         episodes = "/".join(map(str, counts))
-        return f"{env}: median [interquartile range] over {episodes} episodes per planner"
+        return f"{env}: {WHAT} over {episodes} episodes per planner"
     counts = "/".join(map(str, sorted({p["episodes"] for p in robots})))
     n = "/".join(map(str, sorted(set(Counter(p["planner"] for p in robots).values()))))
-    return (f"{env}, {n} robots: median [interquartile range] over {counts} episodes per "
-            f"robot; {POOLED}: all robots' episodes together")  # fmt: skip
+    return (f"{env}, {n} robots: {WHAT} over {counts} episodes per robot; {POOLED}: all "
+            f"robots' episodes together")  # fmt: skip
 
 
 def tables_text(summary: Summary) -> str:

@@ -92,6 +92,47 @@ def test_same_settings_merge_and_the_merge_compares_again(run, tmp_path, capsys)
     assert "is not empty" in _error(capsys)
 
 
+def test_planners_are_paired_by_seed(run, tmp_path, capsys):
+    twin = _copy(run, tmp_path / "twin")
+    with open(twin / "episodes.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    psi, gt_psi = rows[0].index("m_psi"), rows[0].index("gt_m_psi")
+    for row in rows[1:]:
+        row[psi] = repr(float(row[psi]) + 1.0)
+    rows[1][gt_psi] = "nan"
+    with open(twin / "episodes.csv", "w", newline="") as f:
+        csv.writer(f).writerows(rows[:2])  # seed 0 only: seed 1 of base has no partner
+    merged = tmp_path / "merged"
+    capsys.readouterr()
+    assert main(["compare", str(run), str(twin), "--out", str(merged)]) == 0
+    out = capsys.readouterr().out
+    tables, _, paired_text = out.partition("\nPaired comparisons.")
+    assert paired_text and "m_psi (tracked)" in tables
+    assert f"{ENV}: go-to-goal@twin minus go-to-goal@base" in paired_text
+    assert ("1 pair by (scenario, seed); episodes without a partner, left out: 1 of "
+            "go-to-goal@base, 0 of go-to-goal@twin;") in paired_text  # fmt: skip
+    doc = json.loads((merged / "paired.json").read_text())
+    assert set(doc) == {"method", "comparisons"}
+    [c] = doc["comparisons"]
+    assert (c["a"], c["b"], c["pairs"], c["unpaired"]) == ("go-to-goal@base", "go-to-goal@twin",
+                                                          1, {"a": 1, "b": 0})  # fmt: skip
+    tests = {t["label"]: t for t in c["tests"]}
+    assert tests["m_psi (tracked)"]["difference"] == pytest.approx(1.0)
+    assert tests["m_psi (ground truth)"]["n"] == 0 and tests["m_psi (ground truth)"]["p"] is None
+    assert tests["success"]["test"] == "McNemar" and tests["success"]["p"] == 1.0
+    for t in c["tests"]:
+        assert {"n", "a", "b", "difference", "ci_low", "ci_high", "p", "p_holm",
+                "significant"} <= set(t)  # fmt: skip
+    md = (merged / "paired.md").read_text()
+    assert md.startswith("# Paired comparisons") and "| m_psi (ground truth) | % | 0 |" in md
+    # runs of other settings are not paired
+    other = _copy(run, tmp_path / "other", semantics="srpb-code")
+    assert main(["compare", str(run), str(other), "--separate"]) == 0
+    out = capsys.readouterr().out
+    assert "no paired comparisons: the runs were made with different settings" in out
+    assert "Paired comparisons." not in out
+
+
 def test_a_median_over_fewer_episodes_says_so(run, tmp_path, capsys):
     gaps = _copy(run, tmp_path / "gaps")
     with open(gaps / "episodes.csv", newline="") as f:
@@ -102,10 +143,11 @@ def test_a_median_over_fewer_episodes_says_so(run, tmp_path, capsys):
         csv.writer(f).writerows(rows)
     capsys.readouterr()
     assert main(["compare", str(gaps)]) == 0
-    lines = {line.split()[0]: line for line in capsys.readouterr().out.splitlines()[2:]}
+    lines = {line.split("  ")[0]: line for line in capsys.readouterr().out.splitlines()[2:]}
     assert lines["episodes"].split()[-1] == "2"
-    assert lines["m_psi"].endswith("(n=1/2)") and lines["m_dir"].endswith("(n=1/2)")
-    assert "(n=" not in lines["m_obs"]
+    assert lines["m_psi (tracked)"].endswith("(n=1/2)")
+    assert lines["m_dir (tracked)"].endswith("(n=1/2)")
+    assert "(n=" not in lines["m_obs"] and "(n=" not in lines["m_psi (ground truth)"]
     summary = json.loads((run / "summary.json").read_text())
     assert summary["results"][ENV]["go-to-goal"]["metrics"]["m_psi"]["n"] == 2
 

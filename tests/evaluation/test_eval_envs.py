@@ -13,7 +13,7 @@ from srpb_gym.evaluation import figures, resolve_config
 
 ROOT = Path(__file__).resolve().parents[2]
 ENV = "SRPB-Corridor-v0"
-TIMING = ("m_cef", "m_cre")
+TIMING = ("m_cef", "m_cre", "gt_m_cef", "gt_m_cre")  # measured times
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
@@ -33,7 +33,8 @@ def test_a_scenario_file_runs_as_the_custom_env(tmp_path, monkeypatch, capsys):
     out = tmp_path / "file"
     assert main(["eval", "--env", "envs/corridor.yaml", "--planner", "go-to-goal",
                  "--episodes", "1", "--out", str(out)]) == 0  # fmt: skip
-    assert "corridor: median [interquartile range] over 1 episodes" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "corridor: median [95 % CI] (rates: Wilson 95 % CI) over 1 episodes" in printed
     rows = _rows(out)
     assert [(r["env"], r["seed"]) for r in rows] == [("corridor", "0")]
     env = json.loads((out / "config.json").read_text())["envs"][0]

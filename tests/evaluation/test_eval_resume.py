@@ -12,7 +12,7 @@ from srpb_gym.cli import main
 from srpb_gym.planners import PLANNERS, GoToGoal
 
 ENV = "SRPB-Corridor-v0"
-TIMING = ("m_cef", "m_cre")
+TIMING = ("m_cef", "m_cre", "gt_m_cef", "gt_m_cre")  # measured times
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
@@ -77,7 +77,7 @@ def test_resume_finishes_an_interrupted_run(tmp_path, stopping, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["episodes_finished"] == 4 and not summary["interrupted"]
     assert summary["results"][ENV]["stopping"]["episodes"] == 4
-    assert f"{ENV}: median [interquartile range] over 4 episodes" in printed
+    assert f"{ENV}: median [95 % CI] (rates: Wilson 95 % CI) over 4 episodes" in printed
     records = sorted(p.name for p in (out / "episodes" / ENV / "stopping").glob("*[0-9].npz"))
     assert records == [f"corridor_seed{i}.npz" for i in range(4)]
     assert (out / f"trajectories_{ENV}_stopping.png").is_file()
@@ -88,6 +88,29 @@ def test_resume_finishes_an_interrupted_run(tmp_path, stopping, capsys):
     # resuming a finished run runs nothing and changes nothing
     assert _eval(out, "--resume") == 0
     assert _rows(out) == resumed
+
+
+def test_resume_of_a_run_written_before_the_ground_truth_columns(tmp_path, stopping, capsys):
+    out = tmp_path / "run"
+    assert _eval(out) == 130
+    path = out / "episodes.csv"
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    keep = [i for i, name in enumerate(rows[0]) if not name.startswith("gt_")]
+    with open(path, "w", newline="") as f:
+        csv.writer(f).writerows([[r[i] for i in keep] for r in rows])
+    stopping.armed = False
+    assert _eval(out, "--resume") == 0
+    rows = _rows(out)
+    assert [r["seed"] for r in rows] == ["0", "1", "2", "3"] and "gt_m_psi" in rows[0]
+    # the older rows: ground truth not computed; the new ones: computed
+    assert [r["gt_m_psi"] == "nan" for r in rows] == [True, True, False, False]
+    summary = json.loads((out / "summary.json").read_text())["results"][ENV]["stopping"]
+    assert summary["metrics_gt"]["m_psi"]["n"] == 2 and summary["metrics"]["m_psi"]["n"] == 4
+    printed = capsys.readouterr().out.splitlines()
+    assert [line for line in printed if line.startswith("m_psi (ground truth)")][-1].endswith(
+        "(n=2/4)"
+    )
 
 
 def test_resume_refuses_another_configuration(tmp_path, stopping, capsys):

@@ -21,7 +21,7 @@ from srpb_gym.metrics import METRIC_NAMES, MetricParams, evaluate
 from srpb_gym.metrics.io_npz import load_record
 
 ENV = "SRPB-Corridor-v0"
-TIMING = ("m_cef", "m_cre")
+TIMING = ("m_cef", "m_cre", "gt_m_cef", "gt_m_cre")  # measured times
 COLUMNS = ["dwa/robot_0", "dwa/robot_1", "dwa/pooled"]
 
 
@@ -88,6 +88,10 @@ def test_every_row_equals_its_recorded_episode(run):
                           MetricParams(**params))  # fmt: skip
         for name in METRIC_NAMES:  # m_cef, m_cre included: each robot's own planning time
             assert _same(float(row[name]), values[name]), (stem, name)
+        gt_record = load_record(run / "episodes" / ENV / "dwa" / stem.replace(".npz", "_gt.npz"))
+        truth = evaluate(gt_record, "paper", MetricParams(**params))
+        for name in METRIC_NAMES:  # and its ground truth
+            assert _same(float(row[f"gt_{name}"]), truth[name]), (stem, name)
 
 
 def test_per_robot_and_pooled_statistics(run):
@@ -119,8 +123,8 @@ def test_per_robot_and_pooled_statistics(run):
 def test_tables_show_per_robot_and_pooled_columns(printed):
     run, text = printed["out"], printed["text"]
     lines = text.splitlines()
-    assert lines[0].startswith(f"{ENV}, 2 robots: median [interquartile range] over 2 "
-                               "episodes per robot; pooled: ")  # fmt: skip
+    assert lines[0].startswith(f"{ENV}, 2 robots: median [95 % CI] (rates: Wilson 95 % CI) "
+                               "over 2 episodes per robot; pooled: ")  # fmt: skip
     assert lines[1].split() == ["metric", "unit", *COLUMNS]
     assert lines[2].split() == ["episodes", "-", "2", "2", "4"]
     md = (run / f"table_{ENV}.md").read_text().splitlines()
@@ -129,7 +133,10 @@ def test_tables_show_per_robot_and_pooled_columns(printed):
     assert "\\begin{tabular}{llrrr}" in tex and "dwa/robot\\_0 & dwa/robot\\_1 & dwa/pooled" in tex
     with open(run / f"table_{ENV}.csv", newline="") as f:
         header = next(csv.reader(f))
-    assert header[2:] == [f"{c} {k}" for c in COLUMNS for k in ("median", "q1", "q3", "n")]
+    assert header[2:] == [
+        *(f"{c} {k}" for c in COLUMNS for k in ("median", "q1", "q3", "n")),
+        *(f"{c} {k}" for c in COLUMNS for k in ("ci_low", "ci_high")),
+    ]
     assert (run / f"trajectories_{ENV}_dwa.png").is_file() and (run / f"bars_{ENV}.png").is_file()
 
 

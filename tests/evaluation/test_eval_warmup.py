@@ -14,7 +14,7 @@ from srpb_gym.cli import main
 from srpb_gym.planners import PLANNERS, GoToGoal
 
 ENV = "SRPB-Corridor-v0"
-TIMING = ("m_cef", "m_cre")
+TIMING = ("m_cef", "m_cre", "gt_m_cef", "gt_m_cre")  # measured times
 
 
 def _rows(out: Path) -> list[dict[str, str]]:
