@@ -172,8 +172,10 @@ def motion_metrics(
         if reference:
             obs = kernels.reference_obstacle_time(t, col("obstacle_dist") < params.safety_distance)
         else:
-            obs = float(dt @ (col("obstacle_dist")[:-1] < params.safety_distance))
-        shares = {"m_obs": obs} | {k: float(dt @ f[:-1]) for k, f in flags.items()}
+            obs = math.fsum(dt[col("obstacle_dist")[:-1] < params.safety_distance])
+        # exactly rounded sums (math.fsum), not BLAS dot products, whose summation order
+        # depends on the processor: the same episode scores the same on every CPU
+        shares = {"m_obs": obs} | {k: math.fsum(dt[f[:-1].astype(bool)]) for k, f in flags.items()}
         if total == 0.0 and not reference:
             _warn_nan("m_obs, m_osc, m_bwd, m_iprot", "zero episode duration")
         for key, value in shares.items():
