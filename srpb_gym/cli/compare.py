@@ -30,11 +30,14 @@ def add_compare_command(subparsers: Any) -> None:
     p.add_argument("--separate", action="store_true",
                    help="keep runs made with different settings apart, as columns "
                         "PLANNER@RUN, instead of refusing them")  # fmt: skip
+    p.add_argument("--reference", metavar="PLANNER",
+                   help="the planner every other is tested against (default: the first "
+                        "of each scenario)")  # fmt: skip
     p.set_defaults(func=run_compare)
 
 
 def run_compare(args: argparse.Namespace) -> int:
     """Print (and with ``--out`` write) the merged comparison tables."""
-    text, _ = compare_runs(args.dirs, args.out, separate=args.separate)
+    text, _ = compare_runs(args.dirs, args.out, separate=args.separate, reference=args.reference)
     print(text)
     return 0

@@ -115,14 +115,18 @@ def _check_settings(runs: list[Run], separate: bool) -> list[str]:
 
 
 def compare_runs(
-    dirs: Sequence[str], out: str | None = None, separate: bool = False
+    dirs: Sequence[str],
+    out: str | None = None,
+    separate: bool = False,
+    reference: str | None = None,
 ) -> tuple[str, list[str]]:
     """Merge the ``episodes.csv`` of earlier runs into one table per scenario. A planner
     found in more than one run is labelled ``<planner>@<run folder>``; with ``separate``,
     runs made with different settings are kept apart (every planner labelled by its run)
     instead of refused. With ``out``, also writes the merged ``episodes.csv``,
     ``summary.json``, ``config.json`` (the common settings), the tables and bar charts
-    there. Returns the printed text and the files written."""
+    there. The paired tests compare every planner with ``reference`` (default: the first
+    of each scenario). Returns the printed text and the files written."""
     runs = [load_run(d) for d in dirs]
     labels = [run.label for run in runs]
     for i, run in enumerate(runs):
@@ -137,7 +141,7 @@ def compare_runs(
     if notes:
         text += "\n\n" + "\n".join(notes)
     # runs of other settings score other things: their planners are not paired
-    comparisons = [] if notes else paired.paired_comparisons(merged)
+    comparisons = [] if notes else paired.paired_comparisons(merged, reference)
     if notes:
         text += "\n\nno paired comparisons: the runs were made with different settings"
     elif comparisons:

@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from srpb_gym.errors import InputError
 from srpb_gym.evaluation import stats
 from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.intervals import bootstrap_median, holm, paired_rate_difference
@@ -137,15 +138,27 @@ def compare_pair(
             "tests": tests}  # fmt: skip
 
 
-def paired_comparisons(results: Iterable[EpisodeResult]) -> list[dict[str, Any]]:
-    """Every planner against the first of its environment (each robot on its own in a
-    multi-robot run): one :func:`compare_pair` each; none with one planner."""
+def paired_comparisons(
+    results: Iterable[EpisodeResult], reference: str | None = None
+) -> list[dict[str, Any]]:
+    """Every planner against the first of its environment, or against ``reference`` where
+    an environment has it (each robot on its own in a multi-robot run): one
+    :func:`compare_pair` each; none with one planner. A ``reference`` no environment has
+    is an :class:`~srpb_gym.errors.InputError` naming ``--reference``."""
     out = []
-    for env, planners in stats.group(results).items():
+    grouped = stats.group(results)
+    if reference is not None and not any(reference in p for p in grouped.values()):
+        names = sorted({name for p in grouped.values() for name in p})
+        raise InputError(f"no planner {reference!r} in the runs; choose one of: "
+                         f"{', '.join(names)}", key="--reference")  # fmt: skip
+    for env, planners in grouped.items():
         robots = list(dict.fromkeys(r.robot for rows in planners.values() for r in rows))
         for robot in sorted(robots, key=lambda r: -1 if r is None else r):
             cols = {p: [r for r in rows if r.robot == robot] for p, rows in planners.items()}
             names = [p for p, rows in cols.items() if rows]
+            if reference in names:
+                names.remove(reference)
+                names.insert(0, reference)
             out += [compare_pair(env, names[0], cols[names[0]], b, cols[b], robot)
                     for b in names[1:]]  # fmt: skip
     return out

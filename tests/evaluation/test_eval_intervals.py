@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from srpb_gym.cli import main
+from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.intervals import (
     bootstrap_median,
@@ -244,3 +245,13 @@ def test_summary_and_table_cells():
     m = a["metrics"]["m_psi"]
     assert body[labels.index("m_psi (tracked)")][2].startswith("14.5 [")
     assert m["ci_low"] <= m["median"] <= m["ci_high"]
+
+
+def test_a_reference_planner_is_tested_against_the_others():
+    [c] = paired_comparisons(_runs(), reference="b")
+    assert (c["a"], c["b"]) == ("b", "a")
+    tests = {t["label"]: t for t in c["tests"]}
+    assert tests["m_psi (tracked)"]["difference"] == -2.0  # a minus b: the sign turns
+    with pytest.raises(InputError, match="no planner 'c'") as caught:
+        paired_comparisons(_runs(), reference="c")
+    assert caught.value.key == "--reference"
