@@ -13,7 +13,9 @@ simulation and one :class:`~srpb_gym.task.RobotTask` per robot::
 
 Every value is checked when the settings are made, with the strict readers of
 :mod:`srpb_gym.config` (an error names the dotted key), and an unknown setting is a
-``TypeError`` naming it, as for any keyword argument. What depends on a scenario (its
+``TypeError`` naming it, as for any keyword argument. ``gym.make(id, settings=...)``
+works, but Gymnasium cannot write such a spec as JSON (``env.spec.to_json()``): pass the
+keyword arguments where the spec must be JSON. What depends on a scenario (its
 sensors when ``sensors`` names none, its reward section, its goal tolerance) is applied
 when a simulation or a task is built for it.
 """
@@ -63,6 +65,9 @@ class Frozen(Mapping[str, Any]):
     def __repr__(self) -> str:
         return repr(self._data)
 
+    def __hash__(self) -> int:
+        return hash(tuple(sorted(self._data.items())))
+
 
 @dataclass(frozen=True)
 class EnvSettings:
@@ -100,33 +105,44 @@ class EnvSettings:
         unknown = [k for k in kwargs if k not in SETTING_NAMES]
         if unknown:
             raise TypeError(f"{owner} got an unexpected keyword argument {unknown[0]!r}")
-        robot = RobotConfig.from_spec(kwargs.get("robot"))
-        sensors = _checked_sensors(kwargs.get("sensors"))
-        collision = kwargs.get("collision", "terminate")
-        if collision not in COLLISION_MODES:
-            raise InputError(f"expected one of {COLLISION_MODES}, got {collision!r}",
-                             key="collision")  # fmt: skip
-        reward = kwargs.get("reward", "srpb")
-        load_preset(reward)  # an unknown preset: an error naming the key
-        weights = check_weights(kwargs.get("reward_weights") or {})
-        metrics = kwargs.get("metrics") or {}
-        # checked now with the default goal tolerance; each task resolves its own
-        MetricSettings.build(metrics, robot, MetricParams().goal_tolerance_xy)
         record_dir = kwargs.get("record_dir")
-        if record_dir is not None and not isinstance(record_dir, (str, os.PathLike)):
-            raise InputError(f"expected a folder path, got {record_dir!r}", key="record_dir")
+        if isinstance(record_dir, os.PathLike):
+            record_dir = os.fspath(record_dir)
         return cls(
             observation=ObservationConfig.from_spec(kwargs.get("observation")),
-            reward=reward,
-            reward_weights=Frozen(weights),
-            collision=collision,
-            metrics=Frozen(metrics),
-            record_dir=None if record_dir is None else os.fspath(record_dir),
+            reward=kwargs.get("reward", "srpb"),
+            reward_weights=kwargs.get("reward_weights") or {},
+            collision=kwargs.get("collision", "terminate"),
+            metrics=kwargs.get("metrics") or {},
+            record_dir=record_dir,
             sim=SimConfig.from_spec(kwargs.get("sim")),
-            robot=robot,
+            robot=RobotConfig.from_spec(kwargs.get("robot")),
             crowd=SocialForceConfig.from_spec(kwargs.get("crowd"), "crowd"),
-            **sensors,
+            **_checked_sensors(kwargs.get("sensors")),
         )
+
+    def __post_init__(self) -> None:
+        """Check every value (also of settings made directly, not by :meth:`from_kwargs`)
+        and keep read-only copies of the mappings."""
+        kinds = {"observation": ObservationConfig, "sim": SimConfig, "robot": RobotConfig,
+                 "crowd": SocialForceConfig, "lidar": LidarConfig | None,
+                 "detector": DetectorConfig | None, "tracker": TrackerConfig | None}  # fmt: skip
+        for name, kind in kinds.items():
+            if not isinstance(getattr(self, name), kind):
+                label = getattr(kind, "__name__", None) or kind.__args__[0].__name__
+                raise InputError(f"expected a {label} (EnvSettings.from_kwargs reads plain "
+                                 f"data), got {getattr(self, name)!r}", key=name)  # fmt: skip
+        if self.collision not in COLLISION_MODES:
+            raise InputError(f"expected one of {COLLISION_MODES}, got {self.collision!r}",
+                             key="collision")  # fmt: skip
+        load_preset(self.reward)  # an unknown preset: an error naming the key
+        object.__setattr__(self, "reward_weights", Frozen(check_weights(self.reward_weights)))
+        # checked now with the default goal tolerance; each task resolves its own
+        MetricSettings.build(self.metrics, self.robot, MetricParams().goal_tolerance_xy)
+        object.__setattr__(self, "metrics", Frozen(self.metrics))
+        if self.record_dir is not None and not isinstance(self.record_dir, str):
+            raise InputError(f"expected a folder path, got {self.record_dir!r}",
+                             key="record_dir")  # fmt: skip
 
     # ------------------------------------------------------------------ building
     def load_scenario(self, scenario: str | os.PathLike[str]) -> Scenario:

@@ -117,3 +117,16 @@ def test_every_adapter_documents_the_settings():
         assert "settings" in doc
     for name in SETTING_NAMES:
         assert f"``{name}``" in (SRPBNavEnv.__doc__ or ""), name
+
+
+def test_settings_made_directly_are_checked_too():
+    with pytest.raises(InputError) as caught:
+        EnvSettings(collision="bounce")
+    assert caught.value.key == "collision"
+    with pytest.raises(InputError) as caught:
+        EnvSettings(robot="holonomic")  # type: ignore[arg-type]
+    assert caught.value.key == "robot" and "from_kwargs" in caught.value.message
+    with pytest.raises(InputError) as caught:
+        EnvSettings(reward_weights={"nope": 1.0})
+    assert caught.value.key == "reward_weights.nope"
+    assert hash(EnvSettings.from_kwargs({"metrics": {"params": {"person_fov": 3.0}}}))

@@ -63,6 +63,12 @@ def paired_rate_difference(both: int, a_only: int, b_only: int, neither: int,
     n = both + a_only + b_only + neither
     if n <= 0:
         return None
+    if a_only + b_only == 0:
+        # no pair differs: method 10 collapses to [0, 0] where both rates are away from 0
+        # and 100 %; the difference is then bounded by how many pairs could differ, the
+        # Wilson upper bound of 0 discordant pairs in n, either way
+        bound = wilson(0, n, z)[1]  # type: ignore[index]
+        return -bound, bound
     pa, pb = (both + a_only) / n, (both + b_only) / n
     la, ua = (v / 100.0 for v in wilson(both + a_only, n, z))  # type: ignore[misc]
     lb, ub = (v / 100.0 for v in wilson(both + b_only, n, z))  # type: ignore[misc]

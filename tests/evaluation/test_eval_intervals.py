@@ -255,3 +255,16 @@ def test_a_reference_planner_is_tested_against_the_others():
     with pytest.raises(InputError, match="no planner 'c'") as caught:
         paired_comparisons(_runs(), reference="c")
     assert caught.value.key == "--reference"
+
+
+def test_no_differing_pair_still_has_an_interval():
+    # method 10 alone collapses to [0, 0] at 50/50; no pair differing bounds the
+    # difference by the Wilson upper bound of 0 discordant pairs, whatever the rates
+    for both, neither in ((50, 50), (100, 0), (30, 70), (0, 100)):
+        low, high = paired_rate_difference(both, 0, 0, neither)
+        assert low == -high and high == pytest.approx(100 * 1.959964**2 / (100 + 1.959964**2))
+
+
+def test_signed_rank_is_exact_without_ties_whatever_the_zeros():
+    assert signed_rank(np.array([0.0, 1, 2, 3, 4, 5])) == pytest.approx(2 / 2**5)
+    assert signed_rank(np.array([0.0, 0.0])) == 1.0
