@@ -18,7 +18,13 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from srpb_gym.episode_setup import RESET_OPTIONS, episode_layout, out_of_time, planning_seconds
+from srpb_gym.episode_setup import (
+    RESET_OPTIONS,
+    check_render_mode,
+    episode_layout,
+    out_of_time,
+    planning_seconds,
+)
 from srpb_gym.errors import InputError
 from srpb_gym.knowledge import Knowledge
 from srpb_gym.metrics.params import MetricParams
@@ -28,10 +34,7 @@ from srpb_gym.settings import EnvSettings
 from srpb_gym.sim.layout import EpisodeLayout
 from srpb_gym.task import COLLISION_MODES
 
-__all__ = [
-    "COLLISION_MODES", "RESET_OPTIONS", "EnvSettings", "SRPBNavEnv", "StepLimitSync",
-    "check_render_mode", "settings_of",
-]  # fmt: skip
+__all__ = ["COLLISION_MODES", "RESET_OPTIONS", "EnvSettings", "SRPBNavEnv", "StepLimitSync"]
 
 
 class SRPBNavEnv(gym.Env):
@@ -211,7 +214,7 @@ class SRPBNavEnv(gym.Env):
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
-        self.settings = settings_of(settings, kwargs, type(self).__name__)
+        self.settings = EnvSettings.given(settings, kwargs, type(self).__name__)
         self.scenario = self.settings.load_scenario(scenario)
         self.sim, (self.task,) = self.settings.build(self.scenario)
         self.observation_space = self.task.observation_space
@@ -376,21 +379,3 @@ class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):
             registered = gym.registry.get(spec.id) if spec is not None else None
             if registered is not None and registered.max_episode_steps == limit:
                 base._warn_short_limit()  # the registered default, not the user's choice
-
-
-def check_render_mode(render_mode: str | None, modes: list[str]) -> None:
-    """A render mode of the environment's metadata, or ``None``."""
-    if render_mode is not None and render_mode not in modes:
-        raise InputError(f"expected one of {modes}, got {render_mode!r}", key="render_mode")
-
-
-def settings_of(settings: EnvSettings | None, kwargs: dict[str, Any], owner: str) -> EnvSettings:
-    """The settings of an environment: ``settings``, or those of its keyword arguments."""
-    if settings is None:
-        return EnvSettings.from_kwargs(kwargs, f"{owner}()")
-    if not isinstance(settings, EnvSettings):
-        raise InputError(f"expected an EnvSettings, got {settings!r}", key="settings")
-    if kwargs:
-        raise TypeError(f"{owner}() takes either settings or the keyword arguments that make "
-                        f"them, not both (got settings and {sorted(kwargs)[0]!r})")  # fmt: skip
-    return settings

@@ -22,6 +22,12 @@ from srpb_gym.simulation import Simulation
 RESET_OPTIONS = ("people", "start", "goal")
 
 
+def check_render_mode(render_mode: str | None, modes: list[str]) -> None:
+    """A render mode of the environment's metadata, or ``None``."""
+    if render_mode is not None and render_mode not in modes:
+        raise InputError(f"expected one of {modes}, got {render_mode!r}", key="render_mode")
+
+
 def episode_layout(
     scenario: Scenario,
     rng: np.random.Generator,

@@ -18,7 +18,7 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
-from srpb_gym.env import RESET_OPTIONS, SRPBNavEnv, settings_of
+from srpb_gym.env import RESET_OPTIONS, SRPBNavEnv
 from srpb_gym.episode_setup import episode_layout
 from srpb_gym.errors import InputError
 from srpb_gym.metrics.params import MetricParams
@@ -135,7 +135,7 @@ class SRPBMixEnv(SRPBNavEnv):
     ) -> None:
         items = _checked_scenarios(scenarios)
         probabilities = _checked_weights(weights, len(items))
-        settings = settings_of(settings, kwargs, type(self).__name__)
+        settings = EnvSettings.given(settings, kwargs, type(self).__name__)
         with _naming(items, 0):
             super().__init__(items[0], render_mode, settings)
         parts = [_Part(self.scenario, self.sim, self.task)]

@@ -31,8 +31,7 @@ from numpy.typing import NDArray
 from pettingzoo import AECEnv, ParallelEnv
 from pettingzoo.utils import conversions, wrappers
 
-from srpb_gym.env import check_render_mode, settings_of
-from srpb_gym.episode_setup import episode_layout, out_of_time, planning_seconds
+from srpb_gym.episode_setup import check_render_mode, episode_layout, out_of_time, planning_seconds
 from srpb_gym.errors import InputError
 from srpb_gym.knowledge import Knowledge
 from srpb_gym.observation import ObservationConfig
@@ -114,7 +113,7 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
             raise InputError(f"expected a whole number >= 1, got {max_steps!r}",
                              key="max_steps")  # fmt: skip
         self.render_mode = render_mode
-        self.settings = settings_of(settings, kwargs, type(self).__name__)
+        self.settings = EnvSettings.given(settings, kwargs, type(self).__name__)
         self.scenario = self.settings.load_scenario(scenario)
         self.n_robots, self.max_steps = int(n_robots), max_steps
         self.sim, self.tasks = self.settings.build(self.scenario, self.n_robots)

@@ -144,6 +144,21 @@ class EnvSettings:
             raise InputError(f"expected a folder path, got {self.record_dir!r}",
                              key="record_dir")  # fmt: skip
 
+    @classmethod
+    def given(cls, settings: EnvSettings | None, kwargs: dict[str, Any], owner: str) -> EnvSettings:
+        """The settings of an environment ``owner``: ``settings``, or those of its keyword
+        arguments ``kwargs`` (not both)."""
+        if settings is None:
+            return cls.from_kwargs(kwargs, f"{owner}()")
+        if not isinstance(settings, cls):
+            raise InputError(f"expected an EnvSettings, got {settings!r}", key="settings")
+        if kwargs:
+            raise TypeError(
+                f"{owner}() takes either settings or the keyword arguments that "
+                f"make them, not both (got settings and {sorted(kwargs)[0]!r})"
+            )
+        return settings
+
     # ------------------------------------------------------------------ building
     def load_scenario(self, scenario: str | os.PathLike[str]) -> Scenario:
         """The scenario (a packaged name or a YAML file), checked for this robot's radius."""

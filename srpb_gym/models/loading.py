@@ -143,6 +143,13 @@ def global_rngs_kept() -> Iterator[None]:
             torch.cuda.set_rng_state_all(cuda_states)
 
 
+def _load_as(name: str, path: str) -> tuple[Any, str]:
+    """The model in ``path`` loaded as algorithm ``name`` on the CPU, and ``name``; the
+    global random generators as they were."""
+    with global_rngs_kept():
+        return algorithm_class(name).load(path, device="cpu"), name
+
+
 def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[Any, str]:
     """Load a model on the CPU; returns it and its algorithm. The global random generators
     are left as they were (:func:`global_rngs_kept`).
@@ -156,8 +163,7 @@ def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[A
     if algo is not None:
         name = algo.upper()
         try:
-            with global_rngs_kept():
-                return algorithm_class(name).load(path, device="cpu"), name
+            return _load_as(name, path)
         except ImportError:
             raise
         except Exception as exc:
@@ -168,8 +174,7 @@ def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[A
     failures = []
     for name in order:
         try:
-            with global_rngs_kept():
-                return algorithm_class(name).load(path, device="cpu"), name
+            return _load_as(name, path)
         except ImportError:
             raise
         except Exception as exc:
