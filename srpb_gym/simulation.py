@@ -141,7 +141,7 @@ class Simulation:
         self.layout, self.rng = layout, rng
         self.walls = np.ascontiguousarray(np.asarray(layout.walls, dtype=np.float64).reshape(-1, 4))
         self.t, self.steps = 0.0, 0
-        self.crowd.reset(layout.people, layout.formations, self.walls, rng)
+        self.crowd.reset(layout.people, layout.formations, self.walls, rng, layout.doors)
         n_robots = len(layout.robots)
         robots = [(self.robot_config, r.start) for r in layout.robots]
         self.world = World(

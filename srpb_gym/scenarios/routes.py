@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numba import njit
@@ -22,6 +22,8 @@ ROUTE_DIRECTIONS = 8  # corner nodes per wall end, evenly spread around it
 ROUTE_MARGIN = 0.2  # m, beyond the largest body radius: the clearance routes prefer
 ROUTE_PENALTY = 20.0  # m of extra length per m a leg's clearance falls short of the preferred
 OPENING_WIDTH = 2.0  # m, wall ends closer than this across free space form an opening
+DOOR_WIDTH = 1.2  # m, an opening narrower than this lets one body through at a time: a door
+DOOR_MERGE = 0.5  # m, openings whose middles are closer than this are one door
 
 
 def segment_clearance(a: NDArray, b: NDArray, walls: NDArray) -> NDArray:
@@ -60,6 +62,10 @@ class RouteGraph:
     nodes: NDArray[np.float64]
     dist: NDArray[np.float64]
     pred: NDArray[np.int32]
+    #: (D, 6) the doors: openings narrower than ``DOOR_WIDTH`` (one body at a time), each
+    #: centre x, y [m], unit normal x, y (the crossing direction), half width and half
+    #: depth [m] (openings of one door less than ``DOOR_MERGE`` apart are merged)
+    doors: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 6)))
 
     @property
     def clearance(self) -> float:
@@ -147,6 +153,7 @@ def route_graph(
     normal = np.stack([p[:, 1] - q[:, 1], q[:, 0] - p[:, 0]], axis=1)
     normal *= preferred / np.hypot(*normal.T)[:, None]
     candidates += [middle, middle + normal, middle - normal]
+    doors = _doors(p, q, normal / preferred)
     nodes = np.concatenate(candidates)
     if len(nodes):
         nodes = nodes[graph.point_clearance(nodes) >= least]
@@ -163,7 +170,33 @@ def route_graph(
         better = through < dist
         dist = np.where(better, through, dist)
         pred = np.where(better, pred[k : k + 1, :], pred)
-    return replace(graph, nodes=nodes, dist=dist, pred=pred)
+    return replace(graph, nodes=nodes, dist=dist, pred=pred, doors=doors)
+
+
+def _doors(p: NDArray, q: NDArray, normal: NDArray) -> NDArray[np.float64]:
+    """The doors (see :attr:`RouteGraph.doors`) among the openings between wall ends ``p``
+    and ``q`` (M, 2) with unit normals ``normal``: the narrow ones, merged where their
+    middles lie within ``DOOR_MERGE`` of each other (a wall's thickness gives one opening
+    per face and the diagonals), narrowest first; a door spans its openings' wall ends."""
+    middle, width = 0.5 * (p + q), np.hypot(*(p - q).T)
+    doors: list[list[NDArray]] = []
+    for k in np.argsort(width, kind="stable"):
+        if width[k] >= DOOR_WIDTH:
+            break
+        for door in doors:
+            if np.hypot(*(middle[door[0]] - middle[k])) < DOOR_MERGE:
+                door.append(k)
+                break
+        else:
+            doors.append([k])
+    out = np.zeros((len(doors), 6))
+    for d, members in enumerate(doors):
+        n = normal[members[0]]
+        along = np.concatenate([p[members] @ n, q[members] @ n])
+        mean = middle[members].mean(axis=0)
+        center = mean + (0.5 * (along.min() + along.max()) - mean @ n) * n
+        out[d] = (*center, *n, 0.5 * width[members[0]], 0.5 * (along.max() - along.min()))
+    return out
 
 
 @njit(cache=True, error_model="numpy")

@@ -132,6 +132,7 @@ def sample(scenario: Scenario, rng: np.random.Generator, n_robots: int = 1) -> E
         goal_tolerance=specs[0].goal_tolerance,
         bounds=scenario.bounds,
         metadata={"scenario": scenario.name},
+        doors=ctx.routes.doors if scenario.people else np.zeros((0, 6)),
     )
 
 

@@ -69,3 +69,6 @@ class EpisodeLayout:
     goal_tolerance: float = 0.2  # m
     bounds: tuple[float, float, float, float] = (0.0, 0.0, 10.0, 10.0)  # xmin, ymin, xmax, ymax
     metadata: dict = field(default_factory=dict)
+    #: (D, 6) doors that walkers take turns at: centre x, y [m], unit normal x, y, half
+    #: width and half depth [m] (see :attr:`srpb_gym.scenarios.routes.RouteGraph.doors`)
+    doors: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 6)))

@@ -28,7 +28,8 @@ GROUP, FORMATION, RSTART, RLEN, LOOP = range(5)
 # SocialForceConfig (a test checks).
 (A_P, B_P, LAM, T_ANT, EVADE, RANGE, A_W, B_W, A_R, B_R, A_O, _VMAX, BETA1, BETA2, BETA3, VIEW,
  MARGIN, TOL, PASS, K_HOLD, C_HOLD, _VSTAND, T_JIT, F_REACT, R_REACT, T_YAW,
- V_YAW) = range(27)  # fmt: skip
+ V_YAW, K_TTC, T_TTC, F_TTC, M_TTC, D_APPROACH, D_WAIT) = range(33)  # fmt: skip
+DOOR_FLOW = 0.1  # [m/s] slower than this across a door, a body in it holds it both ways
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -93,6 +94,39 @@ def _social(dx: float, dy: float, dvx: float, dvy: float, rsum: float, A: float,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _ttc(dx: float, dy: float, dvx: float, dvy: float, rsum: float, k: float, tau0: float,
+         fmax: float) -> tuple[float, float]:  # fmt: skip
+    """Anticipatory repulsion of the time-to-collision power law (Karamouzas, Skinner and
+    Guy 2014) on a body at offset (dx, dy) and relative velocity (dvx, dvy) from another,
+    combined radius ``rsum``: ``-grad_x k tau^-2 exp(-tau / tau0)``, tau the time until the
+    discs touch at constant velocities, capped at ``fmax``. Zero when they never touch on
+    their course; ``fmax`` straight apart while they overlap."""
+    c = dx * dx + dy * dy - rsum * rsum
+    if c < 0.0:  # already overlapping: straight apart
+        d = math.sqrt(dx * dx + dy * dy)
+        return (fmax * dx / d, fmax * dy / d) if d > 1e-9 else (fmax, 0.0)
+    b = dx * dvx + dy * dvy
+    a = dvx * dvx + dvy * dvy
+    if b >= 0.0 or a < 1e-12:  # not closing in
+        return 0.0, 0.0
+    disc = b * b - a * c
+    if disc <= 0.0:  # passes clear
+        return 0.0, 0.0
+    root = math.sqrt(disc)
+    tau = (-b - root) / a
+    if tau > CUTOFF * tau0:
+        return 0.0, 0.0
+    tau = max(tau, 1e-3)
+    mag = k * math.exp(-tau / tau0) / (a * tau * tau) * (2.0 / tau + 1.0 / tau0)
+    fx = -mag * (dvx - (a * dx - b * dvx) / root)
+    fy = -mag * (dvy - (a * dy - b * dvy) / root)
+    f = math.sqrt(fx * fx + fy * fy)
+    if f > fmax:
+        fx, fy = fx * fmax / f, fy * fmax / f
+    return fx, fy
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anchor, leg_from,
                     walls, prm):  # fmt: skip
     """Start delayed walkers, move cursors past reached waypoints, stop finished walkers. A
@@ -132,26 +166,32 @@ def _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anc
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm):
-    """Unscaled repulsion of person i from all robots."""
+    """Unscaled repulsion of person i from all robots: the social force and the
+    time-to-collision term (its braking part partly turned sideways like the social force's),
+    both for the robot's body plus ``robot_ttc_margin``."""
     fx = fy = 0.0
     for r in range(rxy.shape[0]):
-        gx, gy = _social(
-            pos[i, 0] - rxy[r, 0],
-            pos[i, 1] - rxy[r, 1],
-            vel[i, 0] - rvel[r, 0],
-            vel[i, 1] - rvel[r, 1],
-            radius[i] + rrad[r],
-            prm[A_R],
-            prm[B_R],
-            prm[T_ANT],
-            ex,
-            ey,
-            prm[LAM],
-            evasion,
-            1.0,
-        )
+        dx, dy = pos[i, 0] - rxy[r, 0], pos[i, 1] - rxy[r, 1]
+        dvx, dvy = vel[i, 0] - rvel[r, 0], vel[i, 1] - rvel[r, 1]
+        rsum = radius[i] + rrad[r]
+        gx, gy = _social(dx, dy, dvx, dvy, rsum, prm[A_R], prm[B_R], prm[T_ANT], ex, ey,
+                         prm[LAM], evasion, 1.0)  # fmt: skip
         fx, fy = fx + gx, fy + gy
+        if prm[K_TTC] > 0.0:
+            gx, gy = _ttc(dx, dy, dvx, dvy, rsum + prm[M_TTC], prm[K_TTC], prm[T_TTC],
+                          prm[F_TTC])  # fmt: skip
+            sx, sy = _side(dx, dy, ex, ey)
+            gx, gy = _evade(gx, gy, sx, sy, ex, ey, evasion)
+            fx, fy = fx + gx, fy + gy
     return fx, fy
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _side(dx: float, dy: float, ex: float, ey: float) -> tuple[float, float]:
+    """The unit direction, across heading e, away from an obstacle at offset -(dx, dy): the
+    side the body is on (its right when dead ahead)."""
+    side = 1.0 if dx * ey - dy * ex >= 0.0 else -1.0
+    return side * ey, -side * ex
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -243,17 +283,95 @@ def _group_force(i, ex, ey, pos, vel, links, gsum, prm):
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _door_crossed(c, n, hw, wx, wy, s_i):
+    """Whether waypoint (wx, wy) of a walker on side ``s_i`` of the door at c with normal n
+    and half width hw, lies across it, beside its opening."""
+    s_w = (wx - c[0]) * n[0] + (wy - c[1]) * n[1]
+    t_w = -(wx - c[0]) * n[1] + (wy - c[1]) * n[0]
+    return s_w * s_i < 0.0 and abs(t_w) < hw + 1.0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _holds_door(x, y, vx, vy, r, cx, cy, nx, ny, hw, hd, s_i, sigma):
+    """Whether a body at (x, y) moving at (vx, vy) holds the door against a walker on side
+    ``s_i`` crossing in direction ``sigma``: it is in the opening not going the walker's way
+    (or barely moving), or it comes at the opening from the other side and is nearer to it."""
+    s = (x - cx) * nx + (y - cy) * ny
+    t = -(x - cx) * ny + (y - cy) * nx
+    u = (vx * nx + vy * ny) * sigma  # its speed in the walker's crossing direction
+    if abs(s) < hd + r and abs(t) < hw + r:
+        return u < DOOR_FLOW
+    return s * s_i < 0.0 and abs(s) < abs(s_i) and abs(t) < hw + r and u < -DOOR_FLOW
+
+
+@njit(cache=True, inline="always", error_model="numpy")
+def _door_wait(i, pos, vel, radius, links, cursor, state, route, doors, waiting, rxy, rvel,
+               rrad, prm):  # fmt: skip
+    """Turn-taking at doors: the spot where walker i waits beside a door held by someone
+    coming the other way (:func:`_holds_door`; people waiting do not hold it), as (x, y, 1),
+    or (0, 0, 0) when it walks on. A walker waits when its next waypoint, or the one after,
+    lies across a door less than ``door_approach`` ahead of it; its spot is
+    ``door_wait_distance`` before the door's wall, beside the opening on the side it is on
+    (its right when in the middle)."""
+    px, py, r = pos[i, 0], pos[i, 1], radius[i]
+    k = links[i, RSTART] + cursor[i]
+    last = cursor[i] + 1 >= links[i, RLEN]
+    k2 = (links[i, RSTART] if links[i, LOOP] else -1) if last else k + 1
+    for d in range(doors.shape[0]):
+        c, n = doors[d, 0:2], doors[d, 2:4]
+        hw, hd = doors[d, 4], doors[d, 5]
+        s_i = (px - c[0]) * n[0] + (py - c[1]) * n[1]
+        t_i = -(px - c[0]) * n[1] + (py - c[1]) * n[0]
+        if not (hd + r <= abs(s_i) < hd + prm[D_APPROACH] and abs(t_i) < hw + prm[D_APPROACH]):
+            continue
+        if not (_door_crossed(c, n, hw, route[k, 0], route[k, 1], s_i) or (
+                k2 >= 0 and _door_crossed(c, n, hw, route[k2, 0], route[k2, 1], s_i))):  # fmt: skip
+            continue
+        sigma = -1.0 if s_i > 0.0 else 1.0
+        held = False
+        for j in range(pos.shape[0]):
+            if j != i and state[j] == WALKING and waiting[j] == 0 and _holds_door(
+                    pos[j, 0], pos[j, 1], vel[j, 0], vel[j, 1], radius[j], c[0], c[1], n[0],
+                    n[1], hw, hd, s_i, sigma):  # fmt: skip
+                held = True
+                break
+        for j in range(rxy.shape[0]):
+            if held:
+                break
+            held = _holds_door(rxy[j, 0], rxy[j, 1], rvel[j, 0], rvel[j, 1], rrad[j], c[0],
+                               c[1], n[0], n[1], hw, hd, s_i, sigma)  # fmt: skip
+        if held:
+            side = (1.0 if t_i > 0.0 else -1.0) if abs(t_i) > 0.1 else -sigma
+            back = -sigma * (hd + prm[D_WAIT])
+            aside = side * (hw + r + prm[D_WAIT])
+            return c[0] + back * n[0] - aside * n[1], c[1] + back * n[1] + aside * n[0], 1
+    return 0.0, 0.0, 0
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, route, leg_from,
-                     gsum, fcenter, fradius, walls, rxy, rvel, rrad, prm):  # fmt: skip
+                     gsum, fcenter, fradius, walls, rxy, rvel, rrad, doors, waiting,
+                     prm):  # fmt: skip
     """Social-force velocity of walker i after dt (exact relaxation, forces held). A walker
     pushed off a leg of its route that the body can walk straight, to where a wall is in
-    the way to its waypoint, heads back towards the leg's start if it can go straight there."""
+    the way to its waypoint, heads back towards the leg's start if it can go straight there.
+    A walker waiting for a door (:func:`_door_wait`) heads for its spot beside it and slows
+    to a stop there."""
     k = links[i, RSTART] + cursor[i]
     wx, wy = route[k, 0], route[k, 1]
     px, py, r = pos[i, 0], pos[i, 1], radius[i]
     lx, ly = leg_from[i, 0], leg_from[i, 1]
-    if (wall_within(px, py, wx, wy, r, walls) and not wall_within(lx, ly, wx, wy, r, walls)
-            and not wall_within(px, py, lx, ly, r, walls)):  # fmt: skip
+    speed = props[i, V0]
+    waiting[i] = 0
+    if doors.shape[0] and prm[D_APPROACH] > 0.0:
+        sx, sy, waiting[i] = _door_wait(i, pos, vel, radius, links, cursor, state, route,
+                                        doors, waiting, rxy, rvel, rrad, prm)  # fmt: skip
+        if waiting[i]:
+            wx, wy = sx, sy
+            speed *= min(math.hypot(sx - px, sy - py) / prm[D_WAIT], 1.0)
+    if not waiting[i] and (wall_within(px, py, wx, wy, r, walls)
+                           and not wall_within(lx, ly, wx, wy, r, walls)
+                           and not wall_within(px, py, lx, ly, r, walls)):  # fmt: skip
         wx, wy = lx, ly
     wx, wy = wx - pos[i, 0], wy - pos[i, 1]
     dw = math.hypot(wx, wy)
@@ -268,7 +386,7 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
         fx, fy = fx + reaction * gx, fy + reaction * gy
     gx, gy = _group_force(i, ex, ey, pos, vel, links, gsum, prm)
     tau = props[i, TAU]
-    tx, ty = props[i, V0] * ex + tau * (fx + gx), props[i, V0] * ey + tau * (fy + gy)
+    tx, ty = speed * ex + tau * (fx + gx), speed * ey + tau * (fy + gy)
     a = math.exp(-dt / tau)
     return tx + (vel[i, 0] - tx) * a, ty + (vel[i, 1] - ty) * a
 
@@ -311,7 +429,8 @@ def _limit(vx, vy, vmax, px, py, r, dt, walls):
 
 @njit(cache=True, error_model="numpy")
 def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cursor, state,
-         route, anchor, leg_from, jit, noise, fcenter, fradius, gsum, prm, out):  # fmt: skip
+         route, anchor, leg_from, jit, noise, fcenter, fradius, gsum, doors, waiting, prm,
+         out):  # fmt: skip
     """One update: states, group centres, members' (x, y, yaw) jitter, then all velocities."""
     _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anchor, leg_from,
                     walls, prm)  # fmt: skip
@@ -349,9 +468,12 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
                 rxy,
                 rvel,
                 rrad,
+                doors,
+                waiting,
                 prm,
             )
         else:
+            waiting[i] = 0
             vx, vy = _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit,
                                     rxy, rvel, rrad, prm)  # fmt: skip
         out[i, 0], out[i, 1] = _limit(vx, vy, props[i, VMAX], pos[i, 0], pos[i, 1], radius[i],

@@ -296,6 +296,8 @@ def test_kernel_parameter_indices_follow_the_fields():
     expected = {"person_strength": m.A_P, "anisotropy": m.LAM, "wall_range": m.B_W,
                 "ospace_strength": m.A_O, "group_gaze": m.BETA1, "waypoint_tolerance": m.TOL,
                 "hold_damping": m.C_HOLD, "formation_robot_reaction": m.F_REACT,
-                "yaw_min_speed": m.V_YAW}  # fmt: skip
-    assert len(names) == m.V_YAW + 1
+                "yaw_min_speed": m.V_YAW, "robot_ttc_strength": m.K_TTC,
+                "robot_ttc_margin": m.M_TTC, "door_approach": m.D_APPROACH,
+                "door_wait_distance": m.D_WAIT}  # fmt: skip
+    assert len(names) == m.D_WAIT + 1
     assert all(names[index] == name for name, index in expected.items())
