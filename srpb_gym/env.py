@@ -154,6 +154,22 @@ class SRPBNavEnv(gym.Env):
     ``Monitor(info_keywords=...)`` reads them at the episode end). ``step`` after the end
     raises ``gymnasium.error.ResetNeeded``.
 
+    ``info["collision"]`` is True on every step with a contact (a wall, a person or a
+    robot). A step on which a contact with a body begins (one not touched on the step
+    before; the walls count as one body) is a *collision*, and its info describes it
+    (:mod:`srpb_gym.sim.contact`; two at once: the one closing faster):
+    ``collision_kind`` (``"wall"``, ``"person"``, ``"robot"``), ``collision_by`` (who
+    caused it: ``"robot"``, ``"person"`` or ``"other_robot"``, whoever closed the gap
+    faster; a wall collision and a tie are the robot's), ``collision_robot_speed`` and
+    ``collision_other_speed`` [m/s] (0 for a wall), ``collision_robot_closing`` and
+    ``collision_other_closing`` [m/s] (each one's velocity towards the other along the
+    line between them, the contact normal for a wall; negative: moving away). The
+    velocities are those just before the contact's first impulse (the physics substep
+    before it), so the collision does not hide who moved. Other steps lack these keys. The
+    last ``info`` has ``collision_count`` (the episode's collisions: at most 1 with
+    ``collision="terminate"``) and, after a collision, the first one as
+    ``first_collision_kind``, ``first_collision_by``, ... (the same six fields).
+
     ## Arguments
     ``scenario``: a packaged name (corridor, fformation, crossing, crowd, doorway) or a path
     to a YAML file. ``render_mode``: "human" or "rgb_array". ``observation``: type name or
@@ -200,7 +216,9 @@ class SRPBNavEnv(gym.Env):
       with ``collision`` -110): ``gym.make(id)`` pays the documented preset in every
       scenario, and returns of earlier builds in these two scenarios are not comparable
       (``reward_weights={obs: -1, psi: -5, fsi: -3, dir: -1, collision: -110}`` gives the
-      former weights; metrics, dynamics and observations are unchanged).
+      former weights; metrics, dynamics and observations are unchanged). The info
+      gained the attribution of collisions (``collision_kind``, ``collision_by``, ...,
+      ``collision_count``); everything else is as it was.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

@@ -56,7 +56,10 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
 
     ## Spaces, rewards, info
     Each agent's observation and action spaces, reward terms and step info are those of
-    :class:`srpb_gym.env.SRPBNavEnv` with the same arguments (see its docstring).
+    :class:`srpb_gym.env.SRPBNavEnv` with the same arguments (see its docstring). A
+    collision of two robots is in the info of both, with ``collision_kind`` ``"robot"``;
+    ``collision_by`` is ``"robot"`` for a robot that closed the gap at least as fast as the
+    other, else ``"other_robot"``.
 
     ## Agents leaving and episode end
     An agent that reaches its goal, or collides with ``collision="terminate"``, is

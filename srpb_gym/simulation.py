@@ -33,10 +33,11 @@ from srpb_gym.perception.lidar import Lidar, LidarConfig
 from srpb_gym.perception.sensing import sense
 from srpb_gym.perception.tracker import KalmanTracker, TrackerConfig
 from srpb_gym.recording import GROW_TRACK_PERSON, GROW_TRACKED, MIN_GROUP, OK, record_sample
+from srpb_gym.sim.contact import Collision
 from srpb_gym.sim.crowd import Crowd, SocialForceConfig
 from srpb_gym.sim.layout import EpisodeLayout
 from srpb_gym.sim.robot import RobotConfig, body_to_world, limit_commands, measure_velocity
-from srpb_gym.sim.world import World
+from srpb_gym.sim.world import World, clear_contacts
 
 OBSTACLE_DISTANCE = ("exact", "lidar")
 
@@ -216,7 +217,8 @@ class Simulation:
         self._planning_time = planning_time
         dt, world, before = self.config.control_dt, self.world, self._before
         _before_physics(cmd, self.command, self._low, self._high, self._acc, dt, self._lateral,
-                        world.robot_pose, before, world.collisions, self._rounds[2],
+                        world.robot_pose, before, world.collisions, world.touching,
+                        world.touched, world.new_collisions, self._rounds[2],
                         self._world_cmd)  # fmt: skip
         self._advance_physics()
         _after_physics(before, world.robot_pose, world.people_xy, dt, self.velocity, self.circles)
@@ -311,17 +313,26 @@ class Simulation:
         """(R, 3) contacts of each robot during the last step: wall, person, robot."""
         return self.world.collisions
 
+    def new_collision(self, robot: int = 0) -> tuple[int, Collision | None]:
+        """How many collisions (contacts that began) robot ``robot`` had in the last step,
+        and the one with the largest closing speed (``None`` when none began): see
+        :mod:`srpb_gym.sim.contact`."""
+        world = self.world
+        count = int(world.new_collisions[robot])
+        return count, Collision.from_row(world.collision[robot]) if count else None
+
 
 @njit(cache=True, error_model="numpy")
 def _before_physics(target, command, low, high, acc, dt, lateral, pose, before, collisions,
-                    round_dt, world_cmd):  # fmt: skip
+                    touching, touched, new_collisions, round_dt, world_cmd):  # fmt: skip
     """The limited commands (:func:`~srpb_gym.sim.robot.limit_commands`, into ``command``),
-    the poses before the physics, no collisions yet, and the world-frame commands of the
-    first physics round of ``round_dt`` (:func:`~srpb_gym.sim.robot.body_to_world`)."""
+    the poses before the physics, no contacts yet (:meth:`World.clear_contacts
+    <srpb_gym.sim.world.World.clear_contacts>`), and the world-frame commands of the first
+    physics round of ``round_dt`` (:func:`~srpb_gym.sim.robot.body_to_world`)."""
     limit_commands(target, command, low, high, acc, dt, lateral, command)
     for r in range(pose.shape[0]):
         before[r, 0], before[r, 1], before[r, 2] = pose[r, 0], pose[r, 1], pose[r, 2]
-        collisions[r, :] = False
+    clear_contacts(collisions, touching, touched, new_collisions)
     body_to_world(command, pose, round_dt, world_cmd)
 
 

@@ -42,6 +42,7 @@ from srpb_gym.metrics.record import EpisodeRecord
 from srpb_gym.observation import ObservationBuilder, ObservationConfig
 from srpb_gym.perception.lidar import beam_angles
 from srpb_gym.reward import SRPB_TERMS, TERMS, RewardFunction, resolve_weights
+from srpb_gym.sim.contact import FIRST_PREFIX, STEP_PREFIX, Collision
 from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.simulation import Simulation
 
@@ -146,6 +147,8 @@ class RobotTask:
         """Start the episode of a freshly reset simulation: the first observation and info
         (with ``reward_weights``: the weight of every term in force, by name)."""
         self.collided = False
+        self.collision_count = 0
+        self.first_collision: Collision | None = None
         self.done = False
         distance = self.sim.goal_distance(self.robot)
         if self.collision_mode == "terminate":
@@ -183,18 +186,29 @@ class RobotTask:
             raise RuntimeError(f"robot {self.robot}'s episode has ended; reset first")
         collided = bool(self.sim.collisions[self.robot].any())
         self.collided |= collided
+        count, collision = self.sim.new_collision(self.robot)
+        if count:
+            self.collision_count += count
+            if self.first_collision is None:
+                self.first_collision = collision
         distance = self.sim.goal_distance(self.robot)
         reached = self.goal_reached()
         terminated = reached or (collided and self.collision_mode == "terminate")
         success = reached and not self.collided
         reward = self.reward_fn.step(self.record, distance, success, collided)
         info = self._info(success, collided, distance)
+        if collision is not None:
+            info.update(collision.info(STEP_PREFIX))
         return self.observation(), reward, terminated, info
 
     def finish(self, info: dict[str, Any], stem: str | None = None) -> None:
         """End the episode: put its SRPB metrics into ``info`` (``srpb/<metric>`` from the
-        tracked people, ``srpb_gt/<metric>`` from ground truth, the parameters used) and
-        write its logs as ``<record_dir>/<stem>*`` when recording."""
+        tracked people, ``srpb_gt/<metric>`` from ground truth, the parameters used), its
+        collisions (``collision_count`` and the first one, ``first_collision_<field>``, when
+        there was one) and write its logs as ``<record_dir>/<stem>*`` when recording."""
+        info["collision_count"] = self.collision_count
+        if self.first_collision is not None:
+            info.update(self.first_collision.info(FIRST_PREFIX))
         tracked, truth = self.episode_metrics()
         for name in METRIC_NAMES:
             info[f"srpb/{name}"] = tracked[name]

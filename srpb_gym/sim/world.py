@@ -16,7 +16,11 @@ push them but never through a wall.
 All bodies are read and written in one batch call each (``pymunk.batch``). Collisions of
 each robot with walls, people and other robots are reported per control step through
 pymunk collision callbacks: every robot has its own collision type, so each pair of types
-has its own handler that knows which robots and which kind of contact it reports.
+has its own handler that knows which robots and which kind of contact it reports. The
+handlers also keep which bodies each robot touches, so that a contact that begins on a
+step is told from one that lasts, and attribute each new one from the velocities and the
+normal the physics finds it with (:mod:`srpb_gym.sim.contact`); only the steps with a
+contact pay for this.
 """
 
 from __future__ import annotations
@@ -30,6 +34,7 @@ import pymunk.batch as pb
 from numba import njit
 from numpy.typing import NDArray
 
+from srpb_gym.sim.contact import ROW_SIZE, caused_by
 from srpb_gym.sim.robot import RobotConfig
 
 WALL, PERSON, ROBOT = 2, 3, 16  # collision types; robot i has ROBOT + i
@@ -69,6 +74,17 @@ class World:
         self._people_bodies = [self._add_person(p, r) for p, r in zip(people_xy, people_radius)]
         # contacts per robot (wall, person, robot) since the caller last cleared them
         self.collisions = np.zeros((self.n_robots, 3), dtype=np.bool_)
+        #: the bodies each robot touches since the last :meth:`clear_contacts` and touched
+        #: before it (columns: robots, people, then every wall as one body)
+        n_bodies = self.n_robots + self.n_people + 1
+        self.touching = np.zeros((self.n_robots, n_bodies), dtype=np.bool_)
+        self.touched = np.zeros_like(self.touching)
+        #: (R,) collisions (contacts that began) of each robot since the last clear
+        self.new_collisions = np.zeros(self.n_robots, dtype=np.int64)
+        #: (R, 6) the collision of each robot with the largest closing speed (robot's plus
+        #: other's) among those: :class:`~srpb_gym.sim.contact.Collision` ``from_row``;
+        #: valid only where ``new_collisions`` > 0
+        self.collision = np.zeros((self.n_robots, ROW_SIZE))
         for i in range(self.n_robots):  # the handler's data: the robots and the column
             space.on_collision(ROBOT + i, WALL, pre_solve=self._on_contact, data=(i, 0))
             space.on_collision(ROBOT + i, PERSON, pre_solve=self._on_contact, data=(i, 1))
@@ -112,6 +128,7 @@ class World:
         self._robot_rows = np.array([order[b.id] for b in self._robot_bodies], dtype=np.int64)
         self._control_rows = np.array([order[b.id] for b in self._controls], dtype=np.int64)
         self._people_rows = np.array([order[b.id] for b in self._people_bodies], dtype=np.int64)
+        self._person_of = {s: k for k, b in enumerate(self._people_bodies) for s in b.shapes}
         # vx, vy, omega of every body, written in one batch call per step (people's omega
         # stays 0)
         self._velocities = np.zeros((self._n_bodies, 3))
@@ -135,9 +152,9 @@ class World:
     # what _init_batch derives from the space: the batch buffers (C data bound to the
     # bodies, whose ids change in a copy), the body rows and the views of ``state`` (a
     # copied view would no longer follow the array)
-    _DERIVED = ("_n_bodies", "_robot_rows", "_control_rows", "_people_rows", "_velocities",
-                "_calls", "state", "_views", "_robot_index", "_people_index", "robot_pose",
-                "people_xy", "people_velocity")  # fmt: skip
+    _DERIVED = ("_n_bodies", "_robot_rows", "_control_rows", "_people_rows", "_person_of",
+                "_velocities", "_calls", "state", "_views", "_robot_index", "_people_index",
+                "robot_pose", "people_xy", "people_velocity")  # fmt: skip
 
     def __getstate__(self) -> dict:
         # pymunk copies and pickles the space with its bodies, contacts and collision
@@ -160,6 +177,50 @@ class World:
     def _on_contact(self, arbiter: pymunk.Arbiter, space: pymunk.Space, data: tuple) -> None:
         robots, col = data  # every pair of collision types has its own handler
         self.collisions[robots, col] = True
+        if col == 0:
+            self._touch(robots, self.n_robots + self.n_people, 0, arbiter, False)
+        elif col == 1:
+            person = self._person_of[arbiter.shapes[1]]
+            self._touch(robots, self.n_robots + person, 1, arbiter, False)
+        else:  # the handler's first shape is robot i's
+            i, j = robots
+            self._touch(i, j, 2, arbiter, False)
+            self._touch(j, i, 2, arbiter, True)
+
+    def _touch(self, robot: int, body: int, kind: int, arbiter: pymunk.Arbiter, swap: bool) -> None:
+        """Robot ``robot`` touches ``body`` (a column of :attr:`touching`), a contact of
+        kind code ``kind``; ``swap``: the robot is the arbiter's second shape. A contact
+        new since the last step is a collision, attributed now: pre_solve runs before the
+        contact's impulses, so the bodies still move as they did before it."""
+        if self.touching[robot, body]:
+            return
+        self.touching[robot, body] = True
+        if self.touched[robot, body]:
+            return  # a contact that lasts
+        ours, other = arbiter.shapes
+        n = arbiter.normal  # from the first shape towards the second
+        if swap:
+            ours, other, n = other, ours, -n
+        v = ours.body.velocity
+        robot_closing = 0.0 + v.dot(n)  # never -0.0
+        if kind:
+            w = other.body.velocity
+            other_speed, other_closing = abs(w), 0.0 - w.dot(n)
+        else:
+            other_speed = other_closing = 0.0
+        count = self.new_collisions[robot]
+        row = self.collision[robot]
+        self.new_collisions[robot] = count + 1
+        if count and robot_closing + other_closing <= row[4] + row[5]:
+            return  # the robot's hardest collision of the step is kept
+        row[:] = (kind, caused_by(kind, robot_closing, other_closing), abs(v), other_speed,
+                  robot_closing, other_closing)  # fmt: skip
+
+    def clear_contacts(self) -> None:
+        """Start a control step: no contacts, no collisions yet, and what each robot touched
+        becomes what it touched before (:class:`~srpb_gym.simulation.Simulation` does this
+        in its compiled step)."""
+        clear_contacts(self.collisions, self.touching, self.touched, self.new_collisions)
 
     # ------------------------------------------------------------------ stepping
     def step(
@@ -363,6 +424,17 @@ def _rows(rows: NDArray[np.int64]) -> slice | NDArray[np.int64]:
     if rows.size and np.array_equal(rows, np.arange(rows[0], rows[0] + rows.size)):
         return slice(int(rows[0]), int(rows[0]) + rows.size)
     return rows if rows.size else slice(0, 0)
+
+
+@njit(cache=True, error_model="numpy")
+def clear_contacts(collisions, touching, touched, new_collisions):
+    """See :meth:`World.clear_contacts`."""
+    for r in range(touching.shape[0]):
+        collisions[r, :] = False
+        new_collisions[r] = 0
+        for c in range(touching.shape[1]):
+            touched[r, c] = touching[r, c]
+            touching[r, c] = False
 
 
 @njit(cache=True, error_model="numpy")
