@@ -23,6 +23,7 @@ import numpy as np
 from srpb_gym.planners import Planner, make_planner
 from srpb_gym.planners.learned import LearnedPolicy
 from srpb_gym.registration import CUSTOM_ID, MIX_ID, SCENARIO_IDS
+from srpb_gym.sim.contact import Collision
 
 DEFAULT_EPISODES = 5
 DEFAULT_WARMUP = 100
@@ -193,7 +194,10 @@ class EpisodeResult:
     ``episodes.csv`` written before it was kept, is not computed: :meth:`truth` gives NaN).
     ``record``: the ``.npz`` record, relative to the output folder. ``robot``: the robot's
     index in a multi-robot episode, ``None`` in a single-robot run. ``scenario``: the
-    episode's scenario (for ``SRPB-Mix-v0`` the one drawn)."""
+    episode's scenario (for ``SRPB-Mix-v0`` the one drawn). ``first_collision``: the
+    episode's first collision, attributed (``info["first_collision_<field>"]``;
+    :mod:`srpb_gym.sim.contact`), ``None`` without a collision or when not known (an
+    ``episodes.csv`` written before it was kept)."""
 
     env: str
     planner: str
@@ -208,6 +212,7 @@ class EpisodeResult:
     robot: int | None = None
     scenario: str = ""
     ground_truth: dict[str, float] = field(default_factory=dict)
+    first_collision: Collision | None = None
 
     def truth(self, metric: str) -> float:
         """The ground-truth value of ``metric`` (NaN when not computed)."""

@@ -21,6 +21,7 @@ from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, PlannerSpec, Tas
 from srpb_gym.evaluation.figures import VideoWriter
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.planners import Planner
+from srpb_gym.sim.contact import FIRST_PREFIX, Collision
 
 
 def build_planners(spec: PlannerSpec, agents: list[str]) -> dict[str, Planner]:
@@ -130,5 +131,6 @@ def run_multi_task(
             out["timeout"], {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
             os.path.relpath(record, config.out), clip, robot, config.scenario_name(task.env),
             {m: float(info[f"srpb_gt/{m}"]) for m in METRIC_NAMES},
+            Collision.from_info(info, FIRST_PREFIX),
         ))  # fmt: skip
     return results

@@ -23,6 +23,7 @@ from srpb_gym.evaluation.figures import VideoWriter
 from srpb_gym.evaluation.multi import make_pair, run_multi_task
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.planners import Planner
+from srpb_gym.sim.contact import FIRST_PREFIX, Collision
 
 
 def run_episode(
@@ -143,6 +144,7 @@ class Workspace:
             {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
             os.path.relpath(record, self.config.out), scenario=base.scenario.name,
             ground_truth={m: float(info[f"srpb_gt/{m}"]) for m in METRIC_NAMES},
+            first_collision=Collision.from_info(info, FIRST_PREFIX),
         )  # fmt: skip
         if video is not None:
             result.video = os.path.relpath(video.close(), self.config.out)

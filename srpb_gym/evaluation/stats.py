@@ -4,14 +4,21 @@
 ``collision``, ``timeout`` (0/1), then every metric of :data:`METRIC_NAMES` from the
 people the robot tracked at full precision (``repr`` of the float, ``nan`` when undefined),
 then the same metrics from ground truth (:data:`GT_COLUMNS`, ``gt_m_psi``, ...), then
-``scenario``: the episode's scenario (for ``SRPB-Mix-v0`` the one drawn). A file without
-the ``scenario`` column reads as empty scenarios, one without the ground-truth columns (an
-older run) as ground truth not computed (NaN). A multi-robot run has one row per (episode,
-robot), with a ``robot`` column (the robot's index) after ``seed``.
+``scenario``: the episode's scenario (for ``SRPB-Mix-v0`` the one drawn), then the
+episode's first collision, attributed (:data:`COLLISION_COLUMNS`: ``collision_kind``
+``wall``/``person``/``robot``, ``collision_by`` ``robot``/``person``/``other_robot``, the
+robot's and the other's speed and closing speed [m/s]; empty kind and cause and ``nan``
+speeds without a collision; :mod:`srpb_gym.sim.contact`). A file without the ``scenario``
+column reads as empty scenarios, one without the ground-truth columns (an older run) as
+ground truth not computed (NaN), one without the collision columns as collisions not
+attributed. A multi-robot run has one row per (episode, robot), with a ``robot`` column
+(the robot's index) after ``seed``.
 
 The tables follow the SRPB paper's Table 4: one per scenario, rows = metrics with units
 (after the episode count and the success, collision and timeout rates in % with their
-Wilson 95 % intervals, ``94 [87.5-97.2]``), columns = planners, cells = median over the
+Wilson 95 % intervals, ``94 [87.5-97.2]``; the collision rate split by who caused the
+episode's first collision, ``6 [2.8-12.5] (robot 4 %, person 2 %)``: :func:`rate_cell`),
+columns = planners, cells = median over the
 episodes with the percentile bootstrap 95 % interval of the median, ``12.3 [11.0-13.5]``
 (:mod:`~srpb_gym.evaluation.intervals`). The metrics that depend on the people
 (:data:`PEOPLE_METRICS`) have two rows, ``m_psi (tracked)`` and ``m_psi (ground truth)``;
@@ -38,17 +45,28 @@ from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.intervals import bootstrap_median, finite, wilson
 from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
 from srpb_gym.metrics.io_native import read_text
+from srpb_gym.sim.contact import CAUSES, FIELDS, KINDS, STEP_PREFIX, Collision
 
 GT_PREFIX = "gt_"
 GT_COLUMNS: tuple[str, ...] = tuple(f"{GT_PREFIX}{m}" for m in METRIC_NAMES)
 """The ground-truth metric columns of ``episodes.csv``: ``gt_<metric>``."""
+COLLISION_COLUMNS: tuple[str, ...] = tuple(f"{STEP_PREFIX}{f}" for f in FIELDS)
+"""The columns of an episode's first collision: ``collision_kind``, ``collision_by``,
+``collision_robot_speed``, ``collision_other_speed``, ``collision_robot_closing``,
+``collision_other_closing``."""
 CSV_COLUMNS: tuple[str, ...] = (
     "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES, *GT_COLUMNS,
-    "scenario",
+    "scenario", *COLLISION_COLUMNS,
 )  # fmt: skip
 ROBOT_COLUMNS: tuple[str, ...] = (*CSV_COLUMNS[:3], "robot", *CSV_COLUMNS[3:])
 """The columns of a multi-robot run's ``episodes.csv``."""
 POOLED = "pooled"
+UNATTRIBUTED = "unattributed"
+"""The cause of a collision of ``summary.json``'s ``collision_by_rate`` whose row holds no
+attribution (an ``episodes.csv`` written before it was kept)."""
+BY_LABELS = {"robot": "robot", "person": "person", "other_robot": "other robot",
+             UNATTRIBUTED: "not attributed"}  # fmt: skip
+"""How the tables name each cause of a collision."""
 OUTCOMES: tuple[tuple[str, str], ...] = (
     ("success", "is_success"), ("collision", "collision"), ("timeout", "timeout"),
 )  # fmt: skip
@@ -66,6 +84,8 @@ STATISTICS = {
     "ci_low, ci_high": "percentile bootstrap 95 % interval of the median: 10000 resamples, "
     "numpy default_rng(0); null from fewer than 2 values",
     "<outcome>_rate_ci": "Wilson score 95 % interval of the rate, %",
+    "collision_by_rate": "episodes whose first collision was caused by the robot, a person, "
+    "another robot, or is not attributed (an older episodes.csv), % of all episodes",
 }
 """What the statistics of ``summary.json`` are (its ``statistics`` key)."""
 Summary = dict[str, dict[str, dict[str, Any]]]
@@ -80,8 +100,11 @@ def csv_row(result: EpisodeResult, robots: bool = False) -> list[str]:
     values = [repr(float(result.metrics[m])) for m in METRIC_NAMES]
     truth = [repr(result.truth(m)) for m in METRIC_NAMES]
     robot = ["" if result.robot is None else str(result.robot)] if robots else []
+    c = result.first_collision
+    hit = ["", "", *("nan" for _ in FIELDS[2:])] if c is None else [
+        c.kind, c.by, *(repr(float(getattr(c, f))) for f in FIELDS[2:])]  # fmt: skip
     return [result.env, result.planner, str(result.seed), *robot, *flags, *values, *truth,
-            result.scenario]  # fmt: skip
+            result.scenario, *hit]  # fmt: skip
 
 
 class EpisodeWriter:
@@ -186,7 +209,28 @@ def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> Epi
                          path, line)  # fmt: skip
     scenario = row[col["scenario"]] if "scenario" in col else ""
     return EpisodeResult(env, planner, seed, *flags, metrics, robot=int(robot) if robot else None,
-                         scenario=scenario, ground_truth=truth)  # fmt: skip
+                         scenario=scenario, ground_truth=truth,
+                         first_collision=_collision(row, col, flags[1], path, line))  # fmt: skip
+
+
+def _collision(
+    row: list[str], col: dict[str, int], collided: bool, path: str, line: int
+) -> Collision | None:
+    """The attributed first collision of a row (``None``: none, or the columns absent)."""
+    kind_col, by_col = COLLISION_COLUMNS[:2]
+    kind = row[col[kind_col]].strip() if kind_col in col else ""
+    if not kind:
+        return None
+    by = row[col[by_col]].strip() if by_col in col else ""
+    for name, value, valid in ((kind_col, kind, KINDS), (by_col, by, CAUSES)):
+        if value not in valid:
+            raise InputError(f"column {name} is {value!r}, expected one of "
+                             f"{', '.join(valid)}", path, line)  # fmt: skip
+    if not collided:
+        raise InputError(f"column {kind_col} is {kind!r} in an episode without a collision",
+                         path, line)  # fmt: skip
+    speeds = [_number(row, col, name, path, line) for name in COLLISION_COLUMNS[2:]]
+    return Collision(kind, by, *speeds)
 
 
 def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int) -> float:
@@ -227,7 +271,9 @@ def describe(values: Sequence[float]) -> dict[str, float | int | None]:
 def summarize(results: Iterable[EpisodeResult]) -> Summary:
     """Per env and planner: ``episodes``, ``success_rate``, ``collision_rate``,
     ``timeout_rate`` (%) with their Wilson 95 % intervals (``success_rate_ci``, ...:
-    ``[low, high]`` in %), ``metrics`` (name -> :func:`describe`, from the tracked people)
+    ``[low, high]`` in %), ``collision_by_rate`` (who caused the first collision:
+    ``robot``, ``person``, ``other_robot``, ``unattributed``, in % of all episodes, summing
+    to ``collision_rate``), ``metrics`` (name -> :func:`describe`, from the tracked people)
     and ``metrics_gt`` (the same from ground truth).
 
     A planner whose rows are of several robots gets an entry per robot,
@@ -259,6 +305,10 @@ def _entry(
         count = sum(bool(getattr(r, attr)) for r in rows)
         entry[f"{label}_rate"] = 100.0 * count / len(rows)
         entry[f"{label}_rate_ci"] = wilson(count, len(rows))
+    causes = Counter(r.first_collision.by if r.first_collision else UNATTRIBUTED
+                     for r in rows if r.collision)  # fmt: skip
+    entry["collision_by_rate"] = {c: 100.0 * causes[c] / len(rows)
+                                  for c in (*CAUSES, UNATTRIBUTED)}  # fmt: skip
     entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
     entry["metrics_gt"] = {m: describe([r.truth(m) for r in rows]) for m in METRIC_NAMES}
     return entry
@@ -311,9 +361,18 @@ def cell(
 
 def rate_cell(entry: dict[str, Any], label: str) -> str:
     """``94 [87.5-97.2]``: a rate of ``entry`` (a planner's summary) with its Wilson 95 %
-    interval."""
+    interval. The collision rate is followed by who caused the episodes' first
+    collisions, in % of all episodes, ``6 [2.8-12.5] (robot 4 %, person 2 %)``: the
+    robot and people always, another robot and ``not attributed`` (rows of an older
+    ``episodes.csv``) where there are such; nothing when no collision is attributed."""
     ci = entry.get(f"{label}_rate_ci") or (None, None)
-    return f"{rate(entry[f'{label}_rate'])} {interval(*ci, fmt=rate)}"
+    text = f"{rate(entry[f'{label}_rate'])} {interval(*ci, fmt=rate)}"
+    by = entry.get("collision_by_rate") if label == "collision" else None
+    if not by or not any(by.get(c) for c in CAUSES):
+        return text
+    parts = [f"{BY_LABELS[c]} {rate(by[c])} %" for c in (*CAUSES, UNATTRIBUTED)
+             if c in CAUSES[:2] or by.get(c)]  # fmt: skip
+    return f"{text} ({', '.join(parts)})"
 
 
 def metric_rows() -> list[tuple[str, str, bool]]:

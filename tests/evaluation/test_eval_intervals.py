@@ -20,6 +20,7 @@ from srpb_gym.evaluation.intervals import (
 )
 from srpb_gym.evaluation.paired import compare_pair, mcnemar, paired_comparisons, signed_rank
 from srpb_gym.evaluation.stats import (
+    COLLISION_COLUMNS,
     CSV_COLUMNS,
     GT_COLUMNS,
     PEOPLE_METRICS,
@@ -198,7 +199,9 @@ def test_ground_truth_columns_round_trip(tmp_path):
     assert header == list(CSV_COLUMNS)
     assert header[: 6 + len(METRIC_NAMES)] == ["env", "planner", "seed", "is_success",
                                                "collision", "timeout", *METRIC_NAMES]  # fmt: skip
-    assert header[-1] == "scenario" and header[-1 - len(GT_COLUMNS) : -1] == list(GT_COLUMNS)
+    at = header.index("scenario")  # the collision attribution's columns come after it
+    assert header[at + 1 :] == list(COLLISION_COLUMNS)
+    assert header[at - len(GT_COLUMNS) : at] == list(GT_COLUMNS)
     assert GT_COLUMNS[0] == "gt_m_goal" and "gt_m_psi" in GT_COLUMNS
     back = read_episodes(str(path))
     assert [r.truth("m_psi") for r in back] == [r.truth("m_psi") for r in rows]

@@ -96,13 +96,15 @@ def test_resume_of_a_run_written_before_the_ground_truth_columns(tmp_path, stopp
     path = out / "episodes.csv"
     with open(path, newline="") as f:
         rows = list(csv.reader(f))
-    keep = [i for i, name in enumerate(rows[0]) if not name.startswith("gt_")]
+    # nor the collision attribution's, which came later
+    keep = [i for i, name in enumerate(rows[0]) if not name.startswith(("gt_", "collision_"))]
     with open(path, "w", newline="") as f:
         csv.writer(f).writerows([[r[i] for i in keep] for r in rows])
     stopping.armed = False
     assert _eval(out, "--resume") == 0
     rows = _rows(out)
     assert [r["seed"] for r in rows] == ["0", "1", "2", "3"] and "gt_m_psi" in rows[0]
+    assert [r["collision_kind"] for r in rows] == [""] * 4  # no collision
     # the older rows: ground truth not computed; the new ones: computed
     assert [r["gt_m_psi"] == "nan" for r in rows] == [True, True, False, False]
     summary = json.loads((out / "summary.json").read_text())["results"][ENV]["stopping"]
