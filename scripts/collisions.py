@@ -1,5 +1,6 @@
-"""How planners collide: every collision of their episodes, with what the robot touched and
-how fast it drove just before, and each planner's collisions per 100 s of episode time.
+"""How planners collide: every collision of their episodes, with what the robot touched, how
+fast it drove just before, who caused it, and each planner's collisions per 100 s of
+episode time.
 
     python scripts/collisions.py --env SRPB-Crowd-v0 --planner dwa \\
         --policy ppo-crowd-task ppo-crowd-srpb --episodes 100 --seed 3000000
@@ -7,17 +8,22 @@ how fast it drove just before, and each planner's collisions per 100 s of episod
 Planners, policies (files or shipped names) and ``--env-kwargs`` are resolved as ``srpb-gym
 eval`` resolves them, and the episodes are the same (``env.reset(seed=...)``, seeds from
 ``--seed``; the planner's warm-up is left out, as it changes nothing the episode sees). One
-robot per episode, as in the Gymnasium environment. A collision is a step on which the
-robot touches something after a step on which it touched nothing (with the default
-``collision="terminate"`` it ends the episode, so an episode has at most one). Each line
-names the seed and the scenario (for ``SRPB-Mix-v0`` the one drawn), the time, what the robot
-touches on that step (``person``, ``wall`` or both, ``person+wall``), its mean speed over
-the ``--window`` up to the end of that step (the distance its pose moved, over that time)
-and, when it touches a person, the speed of the person whose centre is nearest. The
-summary gives the episode time (steps times the control step, standing still included),
-the collisions per 100 s of it, and how many collisions with people found the robot at
-``--fast`` m/s or faster and how many below ``--stopped`` m/s. What it showed in
-``crowd``: ``docs/training.md``, section "Standing groups in the lidar".
+robot per episode, as in the Gymnasium environment. A collision is the environment's: a
+step on which the robot touches a body (a person, a robot, a wall: every wall is one) it
+did not touch on the step before, attributed by the environment (``info["collision_*"]``,
+:mod:`srpb_gym.sim.contact`; with the default ``collision="terminate"`` it ends the
+episode, so an episode has at most one; a step on which two begin shows the one closing
+faster). Each line names the seed and the scenario (for ``SRPB-Mix-v0`` the one drawn),
+the time, what the robot touched (``person``, ``wall`` or ``robot``), who caused it
+(``by robot``, ``by person``: who closed the gap faster; a wall is the robot's), the
+robot's mean speed over the ``--window`` up to the end of that step (the distance its
+pose moved, over that time), the speed of the person it touched and the closing speeds
+of both (the robot's + the other's, along the line between them) just before the contact.
+The summary gives the episode time (steps times the control step, standing still
+included), the collisions per 100 s of it, how many collisions each kind and each cause
+had, and how many collisions with people found the robot at ``--fast`` m/s or faster and
+how many below ``--stopped`` m/s. What it showed in ``crowd``: ``docs/training.md``,
+section "Standing groups in the lidar".
 """
 
 from __future__ import annotations
@@ -38,17 +44,17 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation.spec import resolve_config, stderr_log
 from srpb_gym.seeds import RETIRED_TEST, VALIDATION
 
-KINDS = ("wall", "person", "robot")  # the columns of the world's collision flags, in order
-
 
 @dataclass
 class Collision:
     seed: int
     time: float  # s from the episode's start
-    kind: str  # what the robot touches on that step: KINDS joined by "+" (person first)
+    kind: str  # what the robot touched: wall, person or robot
     robot_speed: float  # m/s, mean over the window up to the end of that step
-    person_speed: float  # m/s, the nearest person's (nan when no person is touched)
+    other_speed: float  # m/s, the touched person's or robot's just before (0 for a wall)
     scenario: str = ""  # the scenario drawn (SRPB-Mix-v0)
+    by: str = "robot"  # who caused it: robot, person or other_robot
+    closing: tuple[float, float] = (0.0, 0.0)  # m/s, the robot's and the other's closing speed
 
 
 @dataclass
@@ -83,14 +89,11 @@ def _episode(env: Any, planner: Any, seed: int, window: float, out: Summary) -> 
     base = env.unwrapped
     dt = float(base.task.sim.config.control_dt)
     lag = max(1, round(window / dt))
-    touching = False
 
     def on_step(info: dict[str, Any]) -> None:
-        nonlocal touching
-        if info["collision"] and not touching:
-            out.collisions.append(_collision(base.task.sim.world, seed, _path(base.task.record),
-                                             lag, dt, base.scenario.name))  # fmt: skip
-        touching = bool(info["collision"])
+        if info.get("collision_kind"):
+            out.collisions.append(_collision(info, seed, _path(base.task.record), lag, dt,
+                                             base.scenario.name))  # fmt: skip
 
     steps = run_episode(env, planner, seed, on_step=on_step)["steps"]
     out.episodes += 1
@@ -102,17 +105,16 @@ def _path(record: Any) -> NDArray[np.float64]:
     return np.column_stack([record.robot_col("x"), record.robot_col("y")])
 
 
-def _collision(world: Any, seed: int, path: Sequence[Any], lag: int, dt: float,
+def _collision(info: dict[str, Any], seed: int, path: Sequence[Any], lag: int, dt: float,
                scenario: str = "") -> Collision:  # fmt: skip
-    flags = world.collisions[0]
-    touched = [k for k in ("person", "wall", "robot") if flags[KINDS.index(k)]]
+    """The collision that began on the step of ``info`` (its ``collision_*`` keys), with the
+    robot's mean speed over the last ``lag`` steps of ``path``."""
     back = min(lag, len(path) - 1)
     speed = float(np.linalg.norm(path[-1] - path[-1 - back])) / (back * dt)
-    person = float("nan")
-    if "person" in touched and len(world.people_xy):
-        nearest = int(np.argmin(np.hypot(*(world.people_xy - path[-1]).T)))
-        person = float(np.linalg.norm(world.people_velocity[nearest]))
-    return Collision(seed, (len(path) - 1) * dt, "+".join(touched), speed, person, scenario)
+    closing = (float(info["collision_robot_closing"]), float(info["collision_other_closing"]))
+    return Collision(seed, (len(path) - 1) * dt, str(info["collision_kind"]), speed,
+                     float(info["collision_other_speed"]), scenario, str(info["collision_by"]),
+                     closing)  # fmt: skip
 
 
 def report(summary: Summary, fast: float, stopped: float) -> list[str]:
@@ -120,13 +122,18 @@ def report(summary: Summary, fast: float, stopped: float) -> list[str]:
              f"{len(summary.collisions)} collisions, {summary.rate():.3f} per 100 s"]  # fmt: skip
     for c in summary.collisions:
         where = f" ({c.scenario})" if c.scenario else ""
-        person = "" if np.isnan(c.person_speed) else f", person {c.person_speed:.2f} m/s"
-        lines.append(f"  seed {c.seed}{where}: {c.time:.1f} s, {c.kind}, robot "
-                     f"{c.robot_speed:.2f} m/s{person}")  # fmt: skip
+        other = "" if c.kind == "wall" else f", {c.kind} {c.other_speed:.2f} m/s"
+        lines.append(f"  seed {c.seed}{where}: {c.time:.1f} s, {c.kind}, by "
+                     f"{c.by.replace('_', ' ')}, robot {c.robot_speed:.2f} m/s{other}, closing "
+                     f"{c.closing[0]:.2f} + {c.closing[1]:.2f} m/s")  # fmt: skip
     kinds = Counter(c.kind for c in summary.collisions)
-    people = [c.robot_speed for c in summary.collisions if "person" in c.kind.split("+")]
-    lines.append("  by kind: " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items()))
-                 if summary.collisions else "  no collisions")  # fmt: skip
+    causes = Counter(c.by.replace("_", " ") for c in summary.collisions)
+    people = [c.robot_speed for c in summary.collisions if c.kind == "person"]
+    if summary.collisions:
+        lines.append("  by kind: " + ", ".join(f"{k} {n}" for k, n in sorted(kinds.items())))
+        lines.append("  caused by: " + ", ".join(f"{k} {n}" for k, n in sorted(causes.items())))
+    else:
+        lines.append("  no collisions")
     if people:
         lines.append(
             f"  with people: {sum(s >= fast for s in people)} at {fast:g} m/s or "

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from types import SimpleNamespace
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -11,46 +9,49 @@ import pytest
 from scripts import collisions
 
 
-def _world(flags, people_xy=((1.0, 0.0), (5.0, 5.0)), people_velocity=((0.3, 0.4), (0, 0))):
-    return SimpleNamespace(collisions=np.array([flags], dtype=bool),
-                           people_xy=np.array(people_xy, dtype=float),
-                           people_velocity=np.array(people_velocity, dtype=float))  # fmt: skip
+def _info(kind="person", by="person", other_speed=0.5, closing=(0.1, 0.4)):
+    return {"collision_kind": kind, "collision_by": by, "collision_other_speed": other_speed,
+            "collision_robot_closing": closing[0],
+            "collision_other_closing": closing[1]}  # fmt: skip
 
 
-def test_a_collision_says_what_was_hit_and_how_fast_the_robot_drove():
+def test_a_collision_says_what_was_hit_who_caused_it_and_how_fast_the_robot_drove():
     path = [np.array([0.05 * k, 0.0]) for k in range(8)]  # 0.5 m/s at 0.1 s per step
     path[1] = np.array([9.0, 9.0])  # before the 5-step window (path[2:]): does not count
-    c = collisions._collision(_world([False, True, False]), 7, path, lag=5, dt=0.1)
-    assert (c.seed, c.kind) == (7, "person")
+    c = collisions._collision(_info(), 7, path, lag=5, dt=0.1)
+    assert (c.seed, c.kind, c.by, c.closing) == (7, "person", "person", (0.1, 0.4))
     assert c.time == pytest.approx(0.7)
     assert c.robot_speed == pytest.approx(0.5)  # 0.25 m over the last 5 steps
-    assert c.person_speed == pytest.approx(0.5)  # the nearest person, (0.3, 0.4) m/s
-    wall = collisions._collision(_world([True, False, False]), 8, path[2:4], lag=5, dt=0.1)
-    assert wall.kind == "wall" and np.isnan(wall.person_speed)
+    assert c.other_speed == 0.5  # the touched person's, from the environment
+    wall = collisions._collision(_info("wall", "robot", 0.0, (0.5, 0.0)), 8, path[2:4], lag=5,
+                                 dt=0.1)  # fmt: skip
+    assert (wall.kind, wall.by, wall.other_speed) == ("wall", "robot", 0.0)
     assert wall.robot_speed == pytest.approx(0.5)  # a window longer than the episode so far
-    both = collisions._collision(_world([True, True, False]), 9, path, lag=5, dt=0.1)
-    assert both.kind == "person+wall" and both.person_speed == pytest.approx(0.5)
 
 
 def test_the_report_counts_by_kind_and_speed():
     summary = collisions.Summary("p", episodes=4, time=200.0, collisions=[
-        collisions.Collision(1, 3.0, "person", 0.45, 0.2, "crowd"),
-        collisions.Collision(2, 4.0, "person+wall", 0.05, 1.0, "crowd"),
-        collisions.Collision(3, 5.0, "wall", 0.4, float("nan"), "crowd"),
+        collisions.Collision(1, 3.0, "person", 0.45, 0.2, "crowd", "robot", (0.44, -0.1)),
+        collisions.Collision(2, 4.0, "person", 0.05, 1.0, "crowd", "person", (0.0, 0.9)),
+        collisions.Collision(3, 5.0, "wall", 0.4, 0.0, "crowd", "robot", (0.3, 0.0)),
     ])  # fmt: skip
     assert summary.rate() == pytest.approx(1.5)
     lines = collisions.report(summary, fast=0.3, stopped=0.1)
     assert lines[0] == "p: 4 episodes, 200 s, 3 collisions, 1.500 per 100 s"
-    assert lines[1] == "  seed 1 (crowd): 3.0 s, person, robot 0.45 m/s, person 0.20 m/s"
-    assert lines[3] == "  seed 3 (crowd): 5.0 s, wall, robot 0.40 m/s"
-    assert lines[4] == "  by kind: person 1, person+wall 1, wall 1"
-    assert lines[5] == ("  with people: 1 at 0.3 m/s or faster, 1 below 0.1 m/s "
+    assert lines[1] == ("  seed 1 (crowd): 3.0 s, person, by robot, robot 0.45 m/s, person "
+                        "0.20 m/s, closing 0.44 + -0.10 m/s")  # fmt: skip
+    assert lines[3] == ("  seed 3 (crowd): 5.0 s, wall, by robot, robot 0.40 m/s, closing 0.30 "
+                        "+ 0.00 m/s")  # fmt: skip
+    assert lines[4] == "  by kind: person 2, wall 1"
+    assert lines[5] == "  caused by: person 1, robot 2"
+    assert lines[6] == ("  with people: 1 at 0.3 m/s or faster, 1 below 0.1 m/s "
                         "(robot speeds 0.05, 0.45)")  # fmt: skip
     assert collisions.report(collisions.Summary("q", 1, 10.0), 0.3, 0.1)[1] == "  no collisions"
 
 
-def _contacts(seed: int) -> tuple[list[int], int]:
-    """dwa in crowd with collision="continue": the steps with a contact, and the steps."""
+def _contacts(seed: int) -> tuple[list[int], list[int], int]:
+    """dwa in crowd with collision="continue": the steps with a contact, those on which a
+    collision began, and the steps."""
     import srpb_gym  # noqa: F401
     from srpb_gym.planners import make_planner
 
@@ -58,15 +59,17 @@ def _contacts(seed: int) -> tuple[list[int], int]:
     planner, base = make_planner("dwa"), env.unwrapped
     obs, _ = env.reset(seed=seed)
     planner.reset(base.knowledge())
-    touching, step = [], 0
+    touching, began, step = [], [], 0
     while True:
         obs, _, terminated, truncated, info = env.step(planner.act(obs, base.knowledge()))
         step += 1
         if info["collision"]:
             touching.append(step)
+        if info.get("collision_kind"):
+            began.append(step)
         if terminated or truncated:
             env.close()
-            return touching, step
+            return touching, began, step
 
 
 def test_the_script_runs_the_episodes_eval_runs(capsys):
@@ -74,17 +77,21 @@ def test_the_script_runs_the_episodes_eval_runs(capsys):
     assert collisions.main(["--planner", "dwa", "--episodes", "1", "--seed", "10019"]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "dwa: 1 episodes, 22 s, 1 collisions, 4.651 per 100 s"  # 215 steps
-    assert out[1] == "  seed 10019 (crowd): 21.5 s, person, robot 0.25 m/s, person 0.38 m/s"
-    # going on through contacts, a collision is where one starts
-    touching, steps = _contacts(10019)
+    assert out[1] == ("  seed 10019 (crowd): 21.5 s, person, by robot, robot 0.25 m/s, person "
+                      "0.66 m/s, closing 0.20 + 0.02 m/s")  # fmt: skip
+    # going on through contacts, a collision is where a contact with a body starts: every
+    # step after one without contacts, and a body touched while touching another
+    touching, began, steps = _contacts(10019)
     starts = [s for s in touching if s - 1 not in touching]
-    assert touching[0] == 215 and len(touching) > len(starts)  # contacts last several steps
+    assert touching[0] == 215 and len(touching) > len(began)  # contacts last several steps
+    assert set(starts) <= set(began) <= set(touching)
+    assert (starts, began) == ([215], [215, 216])  # another body touched on the next step
     assert collisions.main(["--planner", "dwa", "--episodes", "1", "--seed", "10019",
                             "--env-kwargs", "collision=continue"]) == 0  # fmt: skip
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith(f"dwa: 1 episodes, {steps * 0.1:.0f} s, {len(starts)} collisions")
-    assert [line.split(": ")[1].split(" s,")[0] for line in out[1 : 1 + len(starts)]] == [
-        f"{s * 0.1:.1f}" for s in starts
+    assert out[0].startswith(f"dwa: 1 episodes, {steps * 0.1:.0f} s, {len(began)} collisions")
+    assert [line.split(": ")[1].split(" s,")[0] for line in out[1 : 1 + len(began)]] == [
+        f"{s * 0.1:.1f}" for s in began
     ]
     assert collisions.main(["--planner", "nope"]) == 2
     assert "unknown planner 'nope'" in capsys.readouterr().err
