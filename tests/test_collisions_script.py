@@ -50,13 +50,13 @@ def test_the_report_counts_by_kind_and_speed():
 
 
 def _contacts(seed: int) -> tuple[list[int], list[int], int]:
-    """dwa in crowd with collision="continue": the steps with a contact, those on which a
-    collision began, and the steps."""
+    """go-to-goal in crowd with collision="continue": the steps with a contact, those on
+    which a collision began, and the steps."""
     import srpb_gym  # noqa: F401
     from srpb_gym.planners import make_planner
 
     env = gym.make("SRPB-Crowd-v0", collision="continue")
-    planner, base = make_planner("dwa"), env.unwrapped
+    planner, base = make_planner("go-to-goal"), env.unwrapped
     obs, _ = env.reset(seed=seed)
     planner.reset(base.knowledge())
     touching, began, step = [], [], 0
@@ -73,23 +73,23 @@ def _contacts(seed: int) -> tuple[list[int], list[int], int]:
 
 
 def test_the_script_runs_the_episodes_eval_runs(capsys):
-    # dwa, crowd, seed 10019: srpb-gym eval records a collision after 21.5 s
-    assert collisions.main(["--planner", "dwa", "--episodes", "1", "--seed", "10019"]) == 0
+    # go-to-goal, crowd, seed 10048: srpb-gym eval records a collision after 2.3 s
+    args = ["--planner", "go-to-goal", "--episodes", "1", "--seed", "10048"]
+    assert collisions.main(args) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0] == "dwa: 1 episodes, 22 s, 1 collisions, 4.651 per 100 s"  # 215 steps
-    assert out[1] == ("  seed 10019 (crowd): 21.5 s, person, by robot, robot 0.25 m/s, person "
-                      "0.66 m/s, closing 0.20 + 0.02 m/s")  # fmt: skip
+    assert out[0] == "go-to-goal: 1 episodes, 2 s, 1 collisions, 43.478 per 100 s"  # 23 steps
+    assert out[1] == ("  seed 10048 (crowd): 2.3 s, person, by robot, robot 0.49 m/s, person "
+                      "0.07 m/s, closing 0.49 + -0.05 m/s")  # fmt: skip
     # going on through contacts, a collision is where a contact with a body starts: every
     # step after one without contacts, and a body touched while touching another
-    touching, began, steps = _contacts(10019)
+    touching, began, steps = _contacts(10048)
     starts = [s for s in touching if s - 1 not in touching]
-    assert touching[0] == 215 and len(touching) > len(began)  # contacts last several steps
+    assert touching[0] == 23 and len(touching) > len(began)  # contacts last several steps
     assert set(starts) <= set(began) <= set(touching)
-    assert (starts, began) == ([215], [215, 216])  # another body touched on the next step
-    assert collisions.main(["--planner", "dwa", "--episodes", "1", "--seed", "10019",
-                            "--env-kwargs", "collision=continue"]) == 0  # fmt: skip
+    assert collisions.main([*args, "--env-kwargs", "collision=continue"]) == 0
     out = capsys.readouterr().out.splitlines()
-    assert out[0].startswith(f"dwa: 1 episodes, {steps * 0.1:.0f} s, {len(began)} collisions")
+    assert out[0].startswith(f"go-to-goal: 1 episodes, {steps * 0.1:.0f} s, {len(began)} "
+                             "collisions")  # fmt: skip
     assert [line.split(": ")[1].split(" s,")[0] for line in out[1 : 1 + len(began)]] == [
         f"{s * 0.1:.1f}" for s in began
     ]

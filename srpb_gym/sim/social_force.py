@@ -165,10 +165,12 @@ def _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anc
 
 
 @njit(cache=True, inline="always", error_model="numpy")
-def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm):
-    """Unscaled repulsion of person i from all robots: the social force and the
-    time-to-collision term (its braking part partly turned sideways like the social force's),
-    both for the robot's body plus ``robot_ttc_margin``."""
+def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm, ux, uy):
+    """Unscaled repulsion of person i from all robots: the social force, and the
+    time-to-collision term (for the robot's body plus ``robot_ttc_margin``; its braking part
+    partly turned sideways like the social force's) of the velocity (ux, uy) the person
+    means to walk at: the collision it would walk into, which its current velocity, already
+    bent by this force, would hide (it would chatter between braking and walking on)."""
     fx = fy = 0.0
     for r in range(rxy.shape[0]):
         dx, dy = pos[i, 0] - rxy[r, 0], pos[i, 1] - rxy[r, 1]
@@ -178,8 +180,8 @@ def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm):
                          prm[LAM], evasion, 1.0)  # fmt: skip
         fx, fy = fx + gx, fy + gy
         if prm[K_TTC] > 0.0:
-            gx, gy = _ttc(dx, dy, dvx, dvy, rsum + prm[M_TTC], prm[K_TTC], prm[T_TTC],
-                          prm[F_TTC])  # fmt: skip
+            gx, gy = _ttc(dx, dy, ux - rvel[r, 0], uy - rvel[r, 1], rsum + prm[M_TTC],
+                          prm[K_TTC], prm[T_TTC], prm[F_TTC])  # fmt: skip
             sx, sy = _side(dx, dy, ex, ey)
             gx, gy = _evade(gx, gy, sx, sy, ex, ey, evasion)
             fx, fy = fx + gx, fy + gy
@@ -382,7 +384,8 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     fx, fy = fx + gx, fy + gy
     reaction = props[i, REACTION] * prm[R_REACT]
     if reaction > 0.0:
-        gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm)
+        gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm,
+                              speed * ex, speed * ey)  # fmt: skip
         fx, fy = fx + reaction * gx, fy + reaction * gy
     gx, gy = _group_force(i, ex, ey, pos, vel, links, gsum, prm)
     tau = props[i, TAU]
@@ -405,7 +408,7 @@ def _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit, rxy,
     ax = ay = 0.0
     if reaction > 0.0:
         ax, ay = _robot_force(i, pos, vel, radius, math.cos(yaw[i]), math.sin(yaw[i]), 0.0,
-                              rxy, rvel, rrad, prm)  # fmt: skip
+                              rxy, rvel, rrad, prm, 0.0, 0.0)  # fmt: skip
     k, c = prm[K_HOLD], prm[C_HOLD]
     den = 1.0 + dt * c + dt * dt * k
     return ((vel[i, 0] + dt * (k * ex + reaction * ax)) / den,
