@@ -14,7 +14,7 @@ the measures; ``benchmarks/calibration.py`` runs them all at full size.
 * :func:`group_shape`: the shape of walking groups of three, alone and meeting a
   counterflow (Moussaid et al. 2010).
 * :func:`lane_formation`: the lane order parameter of two crowds passing through each
-  other in a corridor, against random mixing (Rex & Loewen 2007).
+  other in a corridor, against random mixing (Rex & Loewen 2008).
 * :func:`passing_distance`: the smallest distance of two strangers passing head-on
   (Olivier et al. 2012).
 
@@ -70,12 +70,13 @@ __all__ = [
 
 FAR = 80.0  # [m] how far beyond the end of a corridor the walkers' goals lie
 
-WEIDMANN = "Weidmann 1993, Transporttechnik der Fussgaenger, IVT ETH Zurich"
+# the sources, short (docs/crowd.md gives them in full)
+WEIDMANN = "Weidmann 1993"
 FREE_SPEED, FREE_SD = 1.34, 0.26  # [m/s] Weidmann 1993; Buchmueller & Weidmann 2006
 JAM_DENSITY, WEIDMANN_GAMMA = 5.4, 1.913  # [1/m^2], [1/m^2] the Kladek formula's constants
-MOUSSAID = "Moussaid et al. 2010, PLoS ONE 5(4):e10047, Fig. 4 and Table 1"
-REX_LOEWEN = "order parameter of Rex & Loewen 2007 (EPJ E 26:143); lanes: Helbing & Molnar 1995"
-OLIVIER = "Olivier et al. 2012, Gait & Posture 36:399 (walkers adapt below 1 m)"
+MOUSSAID = "Moussaid et al. 2010, Fig. 4, Table 1"
+REX_LOEWEN = "Rex & Loewen 2008 (order parameter)"
+OLIVIER = "Olivier et al. 2012"
 
 
 def weidmann_speed(density: float | NDArray[np.float64]) -> float | NDArray[np.float64]:
@@ -163,7 +164,7 @@ def free_walking(
     traj = simulate(crowd, np.zeros((0, 4)), duration, cfg, rng)
     v = np.hypot(*np.moveaxis(traj.velocity[round(warmup / traj.dt) :], -1, 0)).mean(axis=0)
     half = math.sqrt(3.0) * FREE_SD
-    source = f"{WEIDMANN}; Buchmueller & Weidmann 2006, IVT Report 132"
+    source = f"{WEIDMANN}; Buchmueller & Weidmann 2006"
     pairs = (("mean", v.mean(), FREE_SPEED), ("sd", v.std(), FREE_SD))
     checks = tuple(Check.within(f"free walking speed, {name}", value, ref, 0.05, source, "m/s")
                    for name, value, ref in pairs)  # fmt: skip
@@ -307,7 +308,7 @@ class Lanes:
 def lane_order(
     xy: NDArray[np.float64], sign: NDArray[np.int64], band: float = 0.5, reach: float = 3.0,
 ) -> float:  # fmt: skip
-    """Order parameter (Rex & Loewen 2007) of people at ``xy`` (P, 2) walking in direction
+    """Order parameter (Rex & Loewen 2008) of people at ``xy`` (P, 2) walking in direction
     ``sign`` (P,) along x: the mean over people of ((same - other) / (same + other))^2,
     counting the others within ``band`` [m] across and ``reach`` [m] along (people without
     any are left out); 1 in perfect lanes, about 1 / (neighbours) for random mixing."""
