@@ -79,7 +79,7 @@ def test_the_script_runs_the_episodes_eval_runs(capsys):
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "go-to-goal: 1 episodes, 2 s, 1 collisions, 43.478 per 100 s"  # 23 steps
     assert out[1] == ("  seed 10048 (crowd): 2.3 s, person, by robot, robot 0.49 m/s, person "
-                      "0.07 m/s, closing 0.49 + -0.05 m/s")  # fmt: skip
+                      "0.15 m/s, closing 0.48 + -0.00 m/s")  # fmt: skip
     # going on through contacts, a collision is where a contact with a body starts: every
     # step after one without contacts, and a body touched while touching another
     touching, began, steps = _contacts(10048)

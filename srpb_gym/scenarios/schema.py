@@ -65,7 +65,8 @@ class RobotSpec:
 class WalkerParams:
     """Per-person parameter ranges of walking people (drawn once per person)."""
 
-    preferred_speed: Range = (0.8, 1.4)  # m/s
+    # m/s: uniform with mean 1.34 and sd 0.26 m/s, the free walking speeds of Weidmann 1993
+    preferred_speed: Range = (0.89, 1.79)
     radius: Range = (0.2, 0.3)  # m, body circle
     relaxation_time: Range = (0.4, 0.6)  # s
     robot_reaction: Range = (1.0, 1.0)  # 0 ignores robots, 1 nominal

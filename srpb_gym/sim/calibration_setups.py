@@ -32,7 +32,7 @@ GROUP_GAP = 0.2  # [m] gap between the bodies of neighbours in a walking group (
 class Walkers:
     """Per-person parameter ranges, each drawn uniformly (the scenario defaults)."""
 
-    preferred_speed: tuple[float, float] = (0.8, 1.4)  # m/s
+    preferred_speed: tuple[float, float] = (0.89, 1.79)  # m/s
     radius: tuple[float, float] = (0.2, 0.3)  # m
     relaxation_time: tuple[float, float] = (0.4, 0.6)  # s
 

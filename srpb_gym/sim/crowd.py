@@ -46,6 +46,12 @@ class SocialForceConfig:
     F-formations (Kendon 1990) as around a disc that covers the O-space and the members
     (``ospace_strength``).
 
+    The part of a walker's desired velocity that people, walls and the group terms turn
+    against its heading is dropped (in a dense crowd people stop; they do not walk
+    backwards). Calibrated against pedestrian data (free walking speed, Weidmann's
+    speed-density relation, group shapes, lanes, passing distance): ``docs/crowd.md`` and
+    ``benchmarks/calibration.py``.
+
     Routes: a waypoint is reached within ``waypoint_tolerance``, or once past it within
     ``waypoint_pass_radius``. Where the leg after it clears the walls for the body, the
     walker goes on only when it can walk straight on from where it stands; a walker pushed
@@ -95,7 +101,7 @@ class SocialForceConfig:
     person_strength: float = 2.1  # A, Helbing & Molnar 1995 (V0 = 2.1 m^2/s^2)
     person_range: float = 0.3  # B [m], Helbing & Molnar 1995 (sigma = 0.3 m)
     anisotropy: float = 0.35  # lambda, weight of interactions behind the person
-    anticipation_time: float = 0.5  # [s] horizon of the collision prediction
+    anticipation_time: float = 1.0  # [s] horizon of the collision prediction (calibrated)
     evasion: float = 0.5  # share of a braking repulsion turned sideways
     interaction_range: float = 5.0  # [m] centre distance beyond which people ignore others
     wall_strength: float = 5.0  # A_w

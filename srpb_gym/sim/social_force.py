@@ -358,7 +358,9 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     pushed off a leg of its route that the body can walk straight, to where a wall is in
     the way to its waypoint, heads back towards the leg's start if it can go straight there.
     A walker waiting for a door (:func:`_door_wait`) heads for its spot beside it and slows
-    to a stop there."""
+    to a stop there. The people, walls and group terms never make it walk backwards (the
+    part of its target velocity against its heading is dropped: in a dense crowd people
+    stop rather than back away); the robot's may."""
     k = links[i, RSTART] + cursor[i]
     wx, wy = route[k, 0], route[k, 1]
     px, py, r = pos[i, 0], pos[i, 1], radius[i]
@@ -382,14 +384,17 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     gx, gy = _wall_force(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i], ex, ey, dw,
                          walls, prm)  # fmt: skip
     fx, fy = fx + gx, fy + gy
-    reaction = props[i, REACTION] * prm[R_REACT]
-    if reaction > 0.0:
-        gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm,
-                              speed * ex, speed * ey)  # fmt: skip
-        fx, fy = fx + reaction * gx, fy + reaction * gy
     gx, gy = _group_force(i, ex, ey, pos, vel, links, gsum, prm)
     tau = props[i, TAU]
     tx, ty = speed * ex + tau * (fx + gx), speed * ey + tau * (fy + gy)
+    ahead = tx * ex + ty * ey
+    if ahead < 0.0:  # pressed by people and walls, a walker stops; it does not back away
+        tx, ty = tx - ahead * ex, ty - ahead * ey
+    reaction = props[i, REACTION] * prm[R_REACT]
+    if reaction > 0.0:  # a robot may make it back away
+        gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm,
+                              speed * ex, speed * ey)  # fmt: skip
+        tx, ty = tx + tau * reaction * gx, ty + tau * reaction * gy
     a = math.exp(-dt / tau)
     return tx + (vel[i, 0] - tx) * a, ty + (vel[i, 1] - ty) * a
 

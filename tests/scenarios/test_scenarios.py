@@ -210,7 +210,7 @@ def test_defaults_and_degrees():
     assert scenario.robot.start.yaw.towards_goal
     assert scenario.robot.goal.yaw.range == pytest.approx((math.pi / 2, math.pi / 2))
     (entry,) = scenario.people
-    assert entry.params.preferred_speed == (0.8, 1.4) and entry.params.radius == (0.2, 0.3)
+    assert entry.params.preferred_speed == (0.89, 1.79) and entry.params.radius == (0.2, 0.3)
     assert entry.params.relaxation_time == (0.4, 0.6) and entry.params.robot_reaction == (1, 1)
     assert scenario.formations[0].orientation == pytest.approx((0.0, math.pi / 2))
     assert scenario.walls.shape == (4, 4)  # enclose: true adds the bounds edges
