@@ -354,9 +354,11 @@ class SRPBNavEnv(gym.Env):
             self._renderer.close()
             self._renderer = None
 
-    def knowledge(self) -> Knowledge:
-        """What the robot knows now, for classical planners (never the ground truth)."""
-        return self.task.knowledge()
+    def knowledge(self, ground_truth: bool = False) -> Knowledge:
+        """What the robot knows now, for classical planners: the tracker's people, or with
+        ``ground_truth`` the true people, for reference planners only
+        (:meth:`srpb_gym.task.RobotTask.knowledge`)."""
+        return self.task.knowledge(ground_truth)
 
     def running_metrics(self) -> dict[str, float]:
         """The episode's SRPB metrics so far (tracked people), for display."""

@@ -240,9 +240,11 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
             self._renderer.close()
             self._renderer = None
 
-    def knowledge(self, agent: str) -> Knowledge:
-        """What ``agent``'s robot knows now, for classical planners (never the ground truth)."""
-        return self._task[agent].knowledge()
+    def knowledge(self, agent: str, ground_truth: bool = False) -> Knowledge:
+        """What ``agent``'s robot knows now, for classical planners: the tracker's people,
+        or with ``ground_truth`` the true people, for reference planners only
+        (:meth:`srpb_gym.task.RobotTask.knowledge`)."""
+        return self._task[agent].knowledge(ground_truth)
 
     def episode_name(self, robot: int) -> str:
         """File stem of robot ``robot``'s current episode (see :class:`SRPBNavEnv`), with

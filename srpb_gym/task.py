@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.errors import InputError
-from srpb_gym.knowledge import Knowledge
+from srpb_gym.knowledge import Knowledge, true_people
 from srpb_gym.metrics import METRIC_NAMES, SRPBMetricWarning, evaluate, resolve_params
 from srpb_gym.metrics.episode import at_goal
 from srpb_gym.metrics.io_native import write_native
@@ -258,15 +258,22 @@ class RobotTask:
         keys = ("m_psi", "m_fsi", "m_dir", "m_obs", "m_plin", "m_chc")
         return {"t": self.sim.t} | {k: values[k] for k in keys}
 
-    def knowledge(self) -> Knowledge:
-        """What the robot knows now, for classical planners (never the ground truth)."""
+    def knowledge(self, ground_truth: bool = False) -> Knowledge:
+        """What the robot knows now, for classical planners: the tracker's people, or with
+        ``ground_truth`` the true people (:func:`~srpb_gym.knowledge.true_people`), which
+        only reference planners are handed (``Planner.ground_truth``)."""
         sim, r = self.sim, self.robot
         state = sim.robots[r]
+        if ground_truth:
+            world = sim.world
+            tracks = true_people(world.people_xy, world.people_velocity, sim.crowd.yaw, sim.t)
+        else:
+            tracks = state.tracker.tracks()
         return Knowledge(
             walls=sim.walls, bounds=sim.layout.bounds, pose=sim.world.robot_pose[r].copy(),
             velocity=sim.velocity[r].copy(), command=sim.command[r].copy(),
             goal=state.goal.copy(), goal_tolerance=self.params.goal_tolerance_xy,
-            goal_yaw_tolerance=self.params.goal_tolerance_yaw, tracks=state.tracker.tracks(),
+            goal_yaw_tolerance=self.params.goal_tolerance_yaw, tracks=tracks,
             scan=state.scan.copy(), scan_angles=state.lidar.angles,
             range_max=sim.lidar_config.range_max, robot=sim.robot_config,
             control_dt=sim.config.control_dt, t=sim.t, range_min=sim.lidar_config.range_min,

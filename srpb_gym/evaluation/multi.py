@@ -20,7 +20,7 @@ from typing import Any
 from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, PlannerSpec, Task
 from srpb_gym.evaluation.figures import VideoWriter
 from srpb_gym.metrics import METRIC_NAMES
-from srpb_gym.planners import Planner
+from srpb_gym.planners import Planner, knowledge_for
 from srpb_gym.sim.contact import FIRST_PREFIX, Collision
 
 
@@ -50,7 +50,7 @@ def run_multi_episode(
     """
     observations, _ = par.reset(seed=seed)
     for agent in par.agents:
-        planners[agent].reset(par.knowledge(agent))
+        planners[agent].reset(knowledge_for(planners[agent], par.knowledge, agent))
     if on_frame is not None:
         on_frame(par.render)
     collided = dict.fromkeys(par.agents, False)
@@ -59,7 +59,7 @@ def run_multi_episode(
     while par.agents:
         actions, times = {}, {}
         for agent in par.agents:
-            knowledge = par.knowledge(agent)
+            knowledge = knowledge_for(planners[agent], par.knowledge, agent)
             started = time.perf_counter()
             actions[agent] = planners[agent].act(observations[agent], knowledge)
             times[agent] = time.perf_counter() - started
@@ -84,9 +84,12 @@ def warm_up_multi(par: Any, planners: Mapping[str, Planner], seed: int, steps: i
         return 0
     observations, _ = par.reset(seed=seed)
     for agent in par.agents:
-        planners[agent].reset(par.knowledge(agent))
+        planners[agent].reset(knowledge_for(planners[agent], par.knowledge, agent))
     for step in range(steps):
-        actions = {a: planners[a].act(observations[a], par.knowledge(a)) for a in par.agents}
+        actions = {}
+        for a in par.agents:
+            knowledge = knowledge_for(planners[a], par.knowledge, a)
+            actions[a] = planners[a].act(observations[a], knowledge)
         par.set_planning_time(0.0)
         observations, *_ = par.step(actions)
         if not par.agents:

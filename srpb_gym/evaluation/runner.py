@@ -4,11 +4,13 @@ pair, built on first use and reused (:class:`Workspace`).
 Episode ``i`` of a pair is ``env.reset(seed=config.seed + i)``. The planner's computation
 time is measured around ``planner.act`` with :func:`time.perf_counter` and handed to the
 environment with ``set_planning_time`` before each step, for classical planners and learned
-policies alike. Before its first timed episode in a process, each planner is warmed up
-(:func:`warm_up`: compilation, first inference) on an unrecorded environment of its own, so
-that ``m_cef`` and ``m_cre`` measure the planner, not the compiler. Episodes of several
-robots are driven by :mod:`srpb_gym.evaluation.multi`; :mod:`srpb_gym.evaluation.pool`
-spreads the episodes of a run over worker processes, with identical results.
+policies alike. A reference planner (``ground_truth``) is handed the true people
+(:func:`~srpb_gym.planners.knowledge_for`), every other planner the tracker's. Before its
+first timed episode in a process, each planner is warmed up (:func:`warm_up`: compilation,
+first inference) on an unrecorded environment of its own, so that ``m_cef`` and ``m_cre``
+measure the planner, not the compiler. Episodes of several robots are driven by
+:mod:`srpb_gym.evaluation.multi`; :mod:`srpb_gym.evaluation.pool` spreads the episodes of a
+run over worker processes, with identical results.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, Task
 from srpb_gym.evaluation.figures import VideoWriter
 from srpb_gym.evaluation.multi import make_pair, run_multi_task
 from srpb_gym.metrics import METRIC_NAMES
-from srpb_gym.planners import Planner
+from srpb_gym.planners import Planner, knowledge_for
 from srpb_gym.sim.contact import FIRST_PREFIX, Collision
 
 
@@ -50,13 +52,13 @@ def run_episode(
     base = env.unwrapped
     obs, info = env.reset(seed=seed, options=None if options is None else dict(options))
     started = time.perf_counter()
-    planner.reset(base.knowledge())
+    planner.reset(knowledge_for(planner, base.knowledge))
     reset_time = time.perf_counter() - started
     if on_frame is not None:
         on_frame(env.render)
     collided, steps = False, 0
     while True:
-        knowledge = base.knowledge()
+        knowledge = knowledge_for(planner, base.knowledge)
         started = time.perf_counter()
         action = planner.act(obs, knowledge)
         duration = time.perf_counter() - started
@@ -84,9 +86,9 @@ def warm_up(env: Any, planner: Planner, seed: int, steps: int) -> int:
         return 0
     base = env.unwrapped
     obs, _ = env.reset(seed=seed)
-    planner.reset(base.knowledge())
+    planner.reset(knowledge_for(planner, base.knowledge))
     for step in range(steps):
-        action = planner.act(obs, base.knowledge())
+        action = planner.act(obs, knowledge_for(planner, base.knowledge))
         base.set_planning_time(0.0)
         obs, _, terminated, truncated, _ = env.step(action)
         if terminated or truncated:

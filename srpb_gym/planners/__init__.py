@@ -15,6 +15,7 @@ from srpb_gym.planners.base import (
     Planner,
     command_to_action,
     heading_error,
+    knowledge_for,
 )
 from srpb_gym.planners.dwa import DWA, DWAConfig
 from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
@@ -81,7 +82,7 @@ __all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "DWAConfig", "GlobalPlanner",
            "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge", "Planner",
            "RecoveryConfig", "SocialDWA", "SocialDWAConfig", "SocialForcePlanner",
            "SocialForcePlannerConfig", "check_settings", "command_to_action", "heading_error",
-           "make_planner", "planner_config"]  # fmt: skip
+           "knowledge_for", "make_planner", "planner_config"]  # fmt: skip
 
 
 def __getattr__(name: str) -> Any:

@@ -6,13 +6,17 @@ covariances, lidar scan), from which classical planners decide and learned polic
 record their observation settings build their own observation. It returns an action of
 the environment's action space (``Box(-1, 1)``; see :class:`srpb_gym.env.SRPBNavEnv`).
 :class:`Knowledge` lives in :mod:`srpb_gym.knowledge`, below the task that builds it and the
-planners that read it.
+planners that read it. The one exception are the reference planners
+(:data:`srpb_gym.planners.REFERENCE_PLANNERS`, ``ground_truth`` set): whoever drives them
+hands them the true people in ``knowledge.tracks``, to show what a good driver achieves when
+perception is perfect; they are no baselines.
 """
 
 from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
+from collections.abc import Callable
 from typing import Any, ClassVar
 
 import numpy as np
@@ -31,11 +35,15 @@ class Planner(ABC):
 
     A planner with settings names their frozen dataclass in ``config_class`` and is built
     as ``Planner(config)`` (an instance, a mapping of the fields to change, or ``None``);
-    it keeps the resolved settings in ``config``.
+    it keeps the resolved settings in ``config``. A planner with ``ground_truth`` is handed
+    the true people instead of the tracker's (:func:`knowledge_for`).
     """
 
     name: ClassVar[str] = "planner"
     config_class: ClassVar[type[Any] | None] = None
+    #: whether the planner is handed the true people in ``knowledge.tracks`` (reference
+    #: planners only): drivers build its knowledge with ``knowledge(ground_truth=True)``
+    ground_truth: ClassVar[bool] = False
 
     def reset(self, knowledge: Knowledge) -> None:  # noqa: B027 - optional hook
         """Start an episode (plan on the static map, clear state)."""
@@ -43,6 +51,15 @@ class Planner(ABC):
     @abstractmethod
     def act(self, observation: Any, knowledge: Knowledge) -> NDArray[np.float32]:
         """The action for this step."""
+
+
+def knowledge_for(planner: Planner, source: Callable[..., Knowledge], *args: Any) -> Knowledge:
+    """The knowledge ``planner`` is handed: ``source(*args)`` (an environment's
+    ``knowledge``, e.g. ``env.unwrapped.knowledge`` or a PettingZoo environment's with the
+    agent), with the true people for a planner with ``ground_truth``."""
+    if getattr(planner, "ground_truth", False):
+        return source(*args, ground_truth=True)
+    return source(*args)
 
 
 def command_to_action(
