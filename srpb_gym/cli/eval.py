@@ -16,6 +16,7 @@ from srpb_gym.evaluation import resolve_config, run_evaluation
 from srpb_gym.evaluation.figures import video_support
 from srpb_gym.evaluation.spec import DEFAULT_WARMUP, ENV_IDS
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
+from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS
 from srpb_gym.planners.config import planner_settings
 
 
@@ -39,7 +40,11 @@ def add_eval_command(subparsers: Any) -> None:
     many = {"action": "extend", "nargs": "+"}
     p.add_argument("--env", metavar="ID|FILE", **many,
                    help="environment id(s) or scenario file(s) (.yaml)")  # fmt: skip
-    p.add_argument("--planner", metavar="NAME", **many, help="registered planner(s)")
+    p.add_argument("--planner", metavar="NAME", **many,
+                   help="registered planner(s): " + ", ".join(PLANNERS) + "; or the "
+                        "reference planner(s) handed the true people instead of the "
+                        "tracker's, run only when named: "
+                        + ", ".join(REFERENCE_PLANNERS))  # fmt: skip
     p.add_argument("--planner-config", metavar="FILE",
                    help="YAML file of planner settings: {NAME: {FIELD: VALUE}}, nested "
                         "configs as nested mappings (see docs/planners.md)")  # fmt: skip

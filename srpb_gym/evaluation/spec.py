@@ -25,7 +25,13 @@ from srpb_gym.evaluation.data import DEFAULT_EPISODES, DEFAULT_WARMUP, EvalConfi
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.evaluation.policies import policy_specs
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
-from srpb_gym.planners import PLANNERS, check_settings, planner_config
+from srpb_gym.planners import (
+    PLANNERS,
+    REFERENCE_PLANNERS,
+    check_settings,
+    planner_config,
+    unknown_planner,
+)
 from srpb_gym.registration import MIX_ID, SCENARIO_IDS
 from srpb_gym.scenarios import load_scenario
 
@@ -69,7 +75,9 @@ def resolve_config(
     video_stride: int = 1,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
-    planner when neither ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
+    planner (:data:`~srpb_gym.planners.PLANNERS`; a reference planner of
+    :data:`~srpb_gym.planners.REFERENCE_PLANNERS` runs only when named) when neither
+    ``planners`` nor ``policies`` is given, ``runs/eval-<time>``.
 
     ``envs``: registered ids or scenario files. ``planner_settings``: ``{planner name:
     settings}`` (plain data, e.g. from :func:`srpb_gym.planners.config.planner_settings`);
@@ -112,6 +120,10 @@ def resolve_config(
         planners = list(PLANNERS)
     settings = check_settings(planner_settings or {})
     specs = [_planner_spec(name, settings.get(name)) for name in _unique(planners or ())]
+    for spec in specs:
+        if spec.planner in REFERENCE_PLANNERS:
+            note(f"note: {spec.name} is a reference planner, handed the true people instead "
+                 "of the tracker's: no baseline")  # fmt: skip
     specs += policy_specs(policies, policy_algo, vecnormalize, probe, note)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
@@ -238,8 +250,7 @@ def _unique(items: Sequence[str]) -> list[str]:
 
 
 def _planner_spec(name: str, settings: Mapping[str, Any] | None = None) -> PlannerSpec:
-    if name not in PLANNERS:
-        raise InputError(f"unknown planner {name!r}; choose one of: {', '.join(PLANNERS)}",
-                         key="--planner")  # fmt: skip
+    if name not in PLANNERS and name not in REFERENCE_PLANNERS:
+        raise InputError(unknown_planner(name), key="--planner")
     planner_config(name, settings)  # fail now on a bad setting, not in a worker
     return PlannerSpec(name=name, planner=name, config=dict(settings or {}))

@@ -1,6 +1,10 @@
 """Planners behind one interface: classical baselines that drive the robot from what it
 knows (never the ground truth). ``make_planner("dwa", {"horizon": 2.5})`` builds one by
-name from plain-data settings (see :mod:`srpb_gym.planners.config`)."""
+name from plain-data settings (see :mod:`srpb_gym.planners.config`).
+
+:data:`PLANNERS` are the baselines, every evaluation's default. :data:`REFERENCE_PLANNERS`
+are handed the true people (:mod:`srpb_gym.planners.reference`): built by name as the
+others, run only when named."""
 
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ from srpb_gym.planners.dwa import DWA, DWAConfig
 from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
 from srpb_gym.planners.go_to_goal import GoToGoal, GoToGoalConfig
 from srpb_gym.planners.recovery import RecoveryConfig
+from srpb_gym.planners.reference import OracleSocialDWA, OracleSocialDWAConfig
 from srpb_gym.planners.social_dwa import SocialDWA, SocialDWAConfig
 from srpb_gym.planners.social_force import SocialForcePlanner, SocialForcePlannerConfig
 
@@ -30,6 +35,25 @@ PLANNERS: dict[str, type[Planner]] = {
     SocialDWA.name: SocialDWA,
     SocialForcePlanner.name: SocialForcePlanner,
 }
+"""The baselines: they see what the robot knows; an evaluation runs them all by default."""
+REFERENCE_PLANNERS: dict[str, type[Planner]] = {OracleSocialDWA.name: OracleSocialDWA}
+"""Reference planners, handed the true people (``ground_truth``): no baselines, run only
+when named."""
+
+
+def planner_class(name: str) -> type[Planner]:
+    """The class of the planner ``name``, a baseline or a reference planner; ``KeyError``
+    naming the choices for an unknown name."""
+    cls = PLANNERS.get(name) or REFERENCE_PLANNERS.get(name)
+    if cls is None:
+        raise KeyError(unknown_planner(name))
+    return cls
+
+
+def unknown_planner(name: str) -> str:
+    """The message for an unknown planner ``name``, naming the choices."""
+    return (f"unknown planner {name!r}; choose one of: {', '.join(PLANNERS)} (reference, "
+            f"handed the true people: {', '.join(REFERENCE_PLANNERS)})")  # fmt: skip
 
 
 def planner_config(name: str, config: Any = None, path: str | None = None) -> Any:
@@ -40,10 +64,8 @@ def planner_config(name: str, config: Any = None, path: str | None = None) -> An
     under ``path`` (default ``planner.<name>``) for bad settings; ``None`` for a planner
     without settings.
     """
-    if name not in PLANNERS:
-        raise KeyError(f"unknown planner {name!r}; choose one of: {', '.join(sorted(PLANNERS))}")
     path = f"planner.{name}" if path is None else path
-    cls = PLANNERS[name].config_class
+    cls = planner_class(name).config_class
     if cls is None:
         if config is not None and not (isinstance(config, Mapping) and not config):
             raise InputError(f"planner {name!r} has no settings", key=path)
@@ -59,30 +81,31 @@ def check_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
         raise InputError(f"expected a mapping of planner names to settings, got {settings!r}",
                          key="planner")  # fmt: skip
     for name in settings:
-        if name not in PLANNERS:
-            raise InputError(f"unknown planner {name!r}; choose one of: "
-                             f"{', '.join(PLANNERS)}", key=f"planner.{name}")  # fmt: skip
+        if name not in PLANNERS and name not in REFERENCE_PLANNERS:
+            raise InputError(unknown_planner(name), key=f"planner.{name}")
     return dict(settings)
 
 
 def make_planner(name: str, config: Any = None, path: str | None = None) -> Planner:
-    """A planner by its name (see :data:`PLANNERS`) with the settings ``config`` (an
-    instance of its config class, a mapping of the fields to change, e.g.
-    ``{"horizon": 2.5, "global_planner": {"spacing": 0.2}}``, or ``None``: the defaults).
+    """A planner by its name (see :data:`PLANNERS`, :data:`REFERENCE_PLANNERS`) with the
+    settings ``config`` (an instance of its config class, a mapping of the fields to change,
+    e.g. ``{"horizon": 2.5, "global_planner": {"spacing": 0.2}}``, or ``None``: the
+    defaults).
 
     Raises ``KeyError`` for an unknown name and :class:`InputError` naming the dotted key
     (``planner.<name>.<field>`` unless ``path`` is given) for bad settings.
     """
     resolved = planner_config(name, config, path)
-    cls = PLANNERS[name]
+    cls = planner_class(name)
     return cls() if cls.config_class is None else cls(resolved)  # type: ignore[call-arg]
 
 
-__all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "DWAConfig", "GlobalPlanner",
-           "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge", "Planner",
-           "RecoveryConfig", "SocialDWA", "SocialDWAConfig", "SocialForcePlanner",
-           "SocialForcePlannerConfig", "check_settings", "command_to_action", "heading_error",
-           "knowledge_for", "make_planner", "planner_config"]  # fmt: skip
+__all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "REFERENCE_PLANNERS", "DWAConfig",
+           "GlobalPlanner", "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge",
+           "OracleSocialDWA", "OracleSocialDWAConfig", "Planner", "RecoveryConfig",
+           "SocialDWA", "SocialDWAConfig", "SocialForcePlanner", "SocialForcePlannerConfig",
+           "check_settings", "command_to_action", "heading_error", "knowledge_for",
+           "make_planner", "planner_class", "planner_config", "unknown_planner"]  # fmt: skip
 
 
 def __getattr__(name: str) -> Any:

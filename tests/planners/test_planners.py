@@ -27,6 +27,7 @@ from srpb_gym.planners import (
     grid,
     make_planner,
     recovery,
+    reference,
     rollout,
     social_dwa,
     social_force,
@@ -147,7 +148,7 @@ def test_acts_on_knowledge_only(name: str) -> None:
 
 
 @pytest.mark.parametrize(
-    "module", [dwa, global_planner, grid, recovery, rollout, social_dwa, social_force]
+    "module", [dwa, global_planner, grid, recovery, reference, rollout, social_dwa, social_force]
 )
 def test_no_ground_truth_access(module) -> None:
     source = inspect.getsource(module)
