@@ -17,6 +17,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
+import numpy as np
+from numpy.typing import NDArray
+
+from srpb_gym.knowledge import Knowledge
 from srpb_gym.planners.global_planner import GlobalPlannerConfig
 from srpb_gym.planners.social_dwa import SocialDWA, SocialDWAConfig
 
@@ -33,11 +37,18 @@ class OracleSocialDWAConfig(SocialDWAConfig):
     """Settings of the :class:`OracleSocialDWA`: the fields of :class:`SocialDWAConfig`,
     with defaults of its own, chosen on validation seeds (``srpb_gym.seeds.VALIDATION``)
     for a driver that reaches its goal without contact rather than for the social metrics:
-    people are kept a wider gap over a longer prediction (exact velocities make it
-    reliable), walkers heading at the robot block their way for longer in the global plan,
-    and the social costs weigh half as much (less hesitation in a crowd)."""
+    walking people are kept a wider gap (``person_margin``; ``standing_margin`` for people
+    predicted standing still, slower than ``standing_speed``, as the social DWA keeps them)
+    over a longer prediction (exact velocities make it reliable), walkers heading at the
+    robot block their way for longer in the global plan, and the social costs weigh half
+    as much (less hesitation in a crowd)."""
 
-    person_margin: float = 0.5  # social-dwa: 0.1
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        self._nonnegative("standing_margin")
+
+    person_margin: float = 0.4  # social-dwa: 0.1; for the people predicted walking ...
+    standing_margin: float = 0.1  # m, ... and this for those predicted standing still
     people_horizon: float = 2.0  # social-dwa: 1.2
     w_psi: float = 4.0  # social-dwa: 8.0
     w_dir: float = 1.0  # social-dwa: 2.0
@@ -55,3 +66,17 @@ class OracleSocialDWA(SocialDWA):
     config_class: ClassVar[type[OracleSocialDWAConfig]] = OracleSocialDWAConfig
     config: OracleSocialDWAConfig
     ground_truth: ClassVar[bool] = True
+
+    def _people(self, k: Knowledge) -> NDArray[np.float64]:
+        """The people of the trajectory checks (:meth:`DWA._people`), those predicted
+        standing still (zero velocity) with ``standing_margin`` instead of
+        ``person_margin``."""
+        people = super()._people(k)
+        still = (people[:, 2] == 0.0) & (people[:, 3] == 0.0)
+        if still.any():
+            cfg = self.config
+            radii = self.planner.robot_radius + cfg.person_radius
+            now = np.hypot(people[still, 0] - k.pose[0], people[still, 1] - k.pose[1])
+            gap = np.minimum(radii + cfg.standing_margin, now - 0.05)
+            people[still, 4] = np.maximum(radii + 0.01, gap)
+        return people

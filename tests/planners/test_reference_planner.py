@@ -4,6 +4,7 @@ default planners, and run end to end by ``srpb-gym eval --planner oracle-social-
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 from pathlib import Path
 
@@ -141,9 +142,9 @@ def test_same_robot_limits_and_map_as_social_dwa():
     """Only people-related settings differ from the social DWA's: no robot limit, no wall
     margin, no sampling or horizon of the trajectories."""
     ours, theirs = OracleSocialDWAConfig(), SocialDWAConfig()
-    changed = {f for f in vars(ours) if getattr(ours, f) != getattr(theirs, f)}
-    assert changed <= {"person_margin", "people_horizon", "w_psi", "w_dir", "psi_layer",
-                       "walking_layer", "global_planner"}  # fmt: skip
+    changed = {f for f in vars(ours) if getattr(ours, f) != getattr(theirs, f, None)}
+    assert changed <= {"person_margin", "standing_margin", "people_horizon", "w_psi", "w_dir",
+                       "psi_layer", "walking_layer", "global_planner"}  # fmt: skip
     gp_ours, gp_theirs = ours.global_planner, theirs.global_planner
     gp_changed = {f for f in vars(gp_ours) if getattr(gp_ours, f) != getattr(gp_theirs, f)}
     assert gp_changed <= {"walking_cost", "person_horizon", "settle_time", "hysteresis"}
@@ -173,3 +174,22 @@ def test_eval_runs_it_when_named(tmp_path, capsys):
     described = json.loads((out / "config.json").read_text())["planners"][0]
     assert described["class"].endswith("OracleSocialDWA") and described["planner"] == ORACLE
     assert Path(out / "episodes" / "SRPB-FFormation-v0" / ORACLE).is_dir()
+
+
+def test_standing_people_keep_the_smaller_margin():
+    """In the trajectory checks a person predicted standing gets ``standing_margin``, a
+    walking one ``person_margin`` (beyond the two radii)."""
+    env = gym.make("SRPB-FFormation-v0")
+    env.reset(seed=3_000_000)
+    planner = OracleSocialDWA({"people_range": 50.0})
+    k = knowledge_for(planner, env.unwrapped.knowledge)
+    planner.reset(k)
+    tracks = k.tracks._replace(
+        xy=k.pose[:2] + np.array([[3.0, 0.0], [0.0, 3.0]]),
+        velocity=np.array([[0.0, 0.0], [0.5, 0.0]]), ids=np.arange(2), yaw=np.zeros(2),
+        covariance=np.zeros((2, 2, 2)),
+    )  # fmt: skip
+    people = planner._people(dataclasses.replace(k, tracks=tracks))
+    radii = planner.planner.robot_radius + planner.config.person_radius
+    assert np.allclose(people[:, 4], radii + np.array([0.1, 0.4]))
+    env.close()
