@@ -176,6 +176,21 @@ def test_eval_runs_it_when_named(tmp_path, capsys):
     assert Path(out / "episodes" / "SRPB-FFormation-v0" / ORACLE).is_dir()
 
 
+def test_docs_list_every_default_that_differs_from_social_dwa():
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "planners.md").read_text()
+    section = doc.split("### `OracleSocialDWAConfig`")[1].split("\n### ")[0]
+    ours, theirs = OracleSocialDWAConfig(), SocialDWAConfig()
+    for name in vars(ours):
+        if name != "global_planner" and getattr(ours, name) != getattr(theirs, name, None):
+            given = f"`{getattr(theirs, name)}`" if hasattr(theirs, name) else "-"
+            assert f"| `{name}` | `{getattr(ours, name)}` | {given} |" in section, name
+    gp_ours, gp_theirs = ours.global_planner, theirs.global_planner
+    for name in vars(gp_ours):
+        if getattr(gp_ours, name) != getattr(gp_theirs, name):
+            row = f"| `global_planner.{name}` | `{getattr(gp_ours, name)}` | "
+            assert row + f"`{getattr(gp_theirs, name)}` |" in section, name
+
+
 def test_standing_people_keep_the_smaller_margin():
     """In the trajectory checks a person predicted standing gets ``standing_margin``, a
     walking one ``person_margin`` (beyond the two radii)."""
