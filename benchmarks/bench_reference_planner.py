@@ -19,11 +19,11 @@ default, as for any figure that may still lead to a choice (such as the referenc
 planner's settings); ``--seed 20000000`` measures on the test range, as the published
 tables do.
 
-The collision column counts every episode with a contact. The target is on the
-collisions the robot causes; until the episodes record who caused a contact
-(:func:`caused_by_robot`), every contact counts against the robot, so the check is the
-stricter one. Columns are built from :data:`COLUMNS`, one function each, so that a
-column (such as contacts by cause) is one more entry.
+The collision column counts every episode with a collision, the next one those the robot
+caused (:func:`caused_by_robot`: the episode's first collision as attributed by
+:mod:`srpb_gym.sim.contact`; a collision not attributed counts against the robot). The
+target is on the collisions the robot causes. Columns are built from :data:`COLUMNS`, one
+function each.
 """
 
 from __future__ import annotations
@@ -50,9 +50,9 @@ TARGET_COLLISIONS = 2.0
 
 
 def caused_by_robot(result: EpisodeResult) -> bool:
-    """Whether the robot caused a contact in the episode: for now any contact (the
-    episodes do not yet record who caused one)."""
-    return result.collision
+    """Whether the robot caused the episode's collision (an unattributed one counts)."""
+    first = result.first_collision
+    return result.collision and (first is None or first.by == "robot")
 
 
 def percent(count: int, n: int) -> float:
@@ -82,6 +82,7 @@ COLUMNS: list[tuple[str, int, Callable[[Sequence[EpisodeResult]], str]]] = [
     ("episodes", 9, lambda results: str(len(results))),
     ("success % [Wilson 95 %]", 25, success_cell),
     ("collision %", 12, rate_cell(lambda r: r.collision)),
+    ("by robot %", 12, rate_cell(caused_by_robot)),
     ("timeout %", 11, rate_cell(lambda r: r.timeout)),
 ]
 
