@@ -63,7 +63,10 @@ def test_pretrain_clones_the_planner_and_sets_the_statistics():
     error_before = float(np.mean((before - demos.actions) ** 2))
     error_after = float(np.mean((after - demos.actions) ** 2))
     assert error_after < 0.1 * error_before, (error_before, error_after)
-    assert report["action_mse"] == pytest.approx(error_after, rel=0.5, abs=1e-3)
+    # the report's error is the fit's on its own demonstrations (other episodes than the
+    # two collected here): the same order, and as far below the error before
+    assert report["action_mse"] < 0.1 * error_before
+    assert report["action_mse"] == pytest.approx(error_after, rel=1.0)
 
 
 MIX = {"reward": "task", "scenarios": ["corridor", "crossing"]}
