@@ -315,18 +315,20 @@ def test_learned_policy_evaluates(tmp_path):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+    from srpb_gym.models import save_vecnormalize
+
     venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV)]))
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, device="cpu", seed=0)
     model.learn(64)
     model.save(tmp_path / "tiny_ppo.zip")
-    venv.save(str(tmp_path / "tiny_ppo_vecnormalize.pkl"))
+    save_vecnormalize(venv, tmp_path / "tiny_ppo_vecnormalize.npz")
     out = tmp_path / "policy"
     assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "tiny_ppo.zip"),
                  "--episodes", "1", "--out", str(out)]) == 0  # fmt: skip
     assert [r["planner"] for r in _rows(out)] == ["tiny_ppo"]
     planner = json.loads((out / "config.json").read_text())["planners"][0]
     assert planner["algo"] == "PPO" and planner["vecnormalize"].endswith(
-        "tiny_ppo_vecnormalize.pkl"
+        "tiny_ppo_vecnormalize.npz"
     )
     assert (out / "episodes" / ENV / "tiny_ppo" / "corridor_seed0.npz").is_file()
 

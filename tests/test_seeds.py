@@ -129,7 +129,7 @@ def _fake_run(run):
     (run / "best").mkdir(parents=True)
     for folder in (run, run / "best"):
         (folder / "model.zip").write_text(f"model in {folder.name}")
-        (folder / "vecnormalize.pkl").write_text("statistics")
+        (folder / "vecnormalize.npz").write_text("statistics")
     (run / "config.yaml").write_text(
         "env: SRPB-Mix-v0\nreward: srpb\nseed: 0\nhyperparams: {eval_episodes: 20}\n"
         "env_kwargs: {weights: [1, 1, 3, 2, 3], reward_weights: {psi: -1.0}, "
@@ -152,7 +152,9 @@ def test_the_card_records_the_test_seeds_and_the_command_that_reproduces_them(
 
     seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
+    def evaluate(
+        model, env_ids, episodes, seed, out, env_kwargs=None, workers=1, trust_pickle=False
+    ):
         seen.append((env_ids, episodes, seed, env_kwargs))
         return {env: {"success": 1.0, "collision": 0.0, "timeout": 0.0, "m_psi": 10.0,
                       "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0} for env in env_ids}  # fmt: skip

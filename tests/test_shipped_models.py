@@ -223,7 +223,9 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     (run / "best").mkdir(parents=True)
     seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
+    def evaluate(
+        model, env_ids, episodes, seed, out, env_kwargs=None, workers=1, trust_pickle=False
+    ):
         seen.append((model, episodes, seed))
         success, psi = best if model.parent.name == "best" else final
         return {env: {"success": success, "m_psi": psi} for env in env_ids}
@@ -271,10 +273,12 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
     model.save(run / "model.zip")
     assert (run / "model.zip").read_bytes() != (run / "best" / "model.zip").read_bytes()
     for folder in (run, run / "best"):
-        (folder / "vecnormalize.pkl").write_bytes(b"the same statistics")
+        (folder / "vecnormalize.npz").write_bytes(b"the same statistics")
     seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
+    def evaluate(
+        model, env_ids, episodes, seed, out, env_kwargs=None, workers=1, trust_pickle=False
+    ):
         seen.append(model)
         return {env: {"success": 0.9, "m_psi": 10.0} for env in env_ids}
 
@@ -283,11 +287,11 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
     assert seen == [run / "best" / "model.zip"]
     results = validation["results"]
     assert folder == run / "best" and results["final"] == results["best"]
-    (run / "vecnormalize.pkl").write_bytes(b"other statistics")  # same weights, other statistics
+    (run / "vecnormalize.npz").write_bytes(b"other statistics")  # same weights, other statistics
     seen.clear()
     ship.choose(run, ["SRPB-Crowd-v0"], 100)
     assert seen == [run / "best" / "model.zip", run / "model.zip"]
-    (run / "vecnormalize.pkl").write_bytes(b"the same statistics")
+    (run / "vecnormalize.npz").write_bytes(b"the same statistics")
     tiny(1).save(run / "model.zip")  # other weights
     seen.clear()
     ship.choose(run, ["SRPB-Crowd-v0"], 100)
@@ -301,7 +305,7 @@ def _fake_run(run, best: bool, interrupted: bool = False, weights=None, kwargs="
     (run / "best").mkdir(parents=True) if best else run.mkdir(parents=True)
     for folder in (run, run / "best") if best else (run,):
         (folder / "model.zip").write_text(f"model in {folder.name}")
-        (folder / "vecnormalize.pkl").write_text("statistics")
+        (folder / "vecnormalize.npz").write_text("statistics")
     (run / "config.yaml").write_text(
         "env: SRPB-Corridor-v0\nreward: srpb\nseed: 0\nhyperparams: {eval_episodes: 20}\n"
         f"env_kwargs: {kwargs}\n"
@@ -321,7 +325,9 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
 
     workers_seen = []
 
-    def evaluate(model, env_ids, episodes, seed, out, env_kwargs=None, workers=1):
+    def evaluate(
+        model, env_ids, episodes, seed, out, env_kwargs=None, workers=1, trust_pickle=False
+    ):
         workers_seen.append(workers)
         good = model.parent.name == "run"  # the final model is the better one here
         return {env: {"success": 1.0 if good else 0.5, "collision": 0.0, "timeout": 0.0,

@@ -34,14 +34,14 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
     assert "episode/s" not in captured.err  # --no-progress: no bar, evaluations included
     for name in (
         "model.zip",
-        "vecnormalize.pkl",
+        "vecnormalize.npz",
         "config.yaml",
         "command.txt",
         "run.json",
         "progress.csv",
         "evaluations.csv",
         "best/model.zip",
-        "best/vecnormalize.pkl",
+        "best/vecnormalize.npz",
     ):
         assert (out / name).is_file(), name  # fmt: skip
     assert list((out / "tb").iterdir()), "no TensorBoard events"
@@ -80,7 +80,7 @@ def test_train_then_evaluate_the_run(tmp_path, capsys):
     rc = main([*words[1:], "--episodes", "1", "--warmup", "0", "--out", str(tmp_path / "eval")])
     captured = capsys.readouterr()
     assert rc == 0, captured.err
-    assert f"observations normalised with {out / 'best' / 'vecnormalize.pkl'}" in captured.err
+    assert f"observations normalised with {out / 'best' / 'vecnormalize.npz'}" in captured.err
     with open(tmp_path / "eval" / "episodes.csv", newline="") as f:
         assert [r["planner"] for r in csv.DictReader(f)] == ["best"]
 
@@ -105,7 +105,7 @@ def test_ctrl_c_saves_a_usable_model(tmp_path, monkeypatch):
     from srpb_gym.planners.learned import LearnedPolicy
 
     policy = LearnedPolicy(tmp_path / "run" / "model.zip",
-                           vecnormalize=tmp_path / "run" / "vecnormalize.pkl")  # fmt: skip
+                           vecnormalize=tmp_path / "run" / "vecnormalize.npz")  # fmt: skip
     import gymnasium as gym
 
     env = gym.make("SRPB-Corridor-v0")
@@ -298,7 +298,7 @@ def test_init_starts_from_a_trained_model(tmp_path):
     from srpb_gym.errors import InputError
     from srpb_gym.models import OBSERVATION_RECORD, load_vecnormalize, resolve_model
     from srpb_gym.observation import ObservationConfig
-    from srpb_gym.training.run import load_init, make_vec_env
+    from srpb_gym.training.run import load_init, make_vec_env, read_init
 
     small = {"n_timesteps": 256, "n_steps": 128, "batch_size": 64, "n_epochs": 1,
              "net_arch": [16], "eval_freq": 0}  # fmt: skip
@@ -306,12 +306,12 @@ def test_init_starts_from_a_trained_model(tmp_path):
     first = train("SRPB-Corridor-v0", config, preset="task", out=str(tmp_path / "a"),
                   progress=False, log=lambda line: None)  # fmt: skip
     path, stats = resolve_model(first.out, "--init")  # a run folder
-    assert path.endswith("model.zip") and stats is not None and stats.endswith(".pkl")
+    assert path.endswith("model.zip") and stats is not None and stats.endswith(".npz")
     assert resolve_model(path, "--init") == (path, stats)  # the file itself
 
     venv = VecNormalize(make_vec_env("SRPB-Corridor-v0", config, {"reward": "srpb"}, 1))
     model = PPO("MlpPolicy", venv, seed=1, **config.ppo_kwargs())
-    load_init(model, venv, path, stats, ObservationConfig())
+    load_init(model, venv, read_init(path), ObservationConfig())
     trained = PPO.load(path).policy.state_dict()
     for key, value in model.policy.state_dict().items():
         np.testing.assert_array_equal(value.numpy(), trained[key].numpy(), err_msg=key)
@@ -355,7 +355,7 @@ def test_init_starts_from_a_trained_model(tmp_path):
     delattr(bare, OBSERVATION_RECORD)
     (tmp_path / "bare").mkdir()
     bare.save(tmp_path / "bare" / "model.zip")
-    shutil.copy(stats, tmp_path / "bare" / "vecnormalize.pkl")
+    shutil.copy(stats, tmp_path / "bare" / "vecnormalize.npz")
     for name, kwargs, said in (("j", {"observation": {"lidar_encoding": "log"}},
                                 "{lidar_encoding: log}"), ("k", {}, "default")):  # fmt: skip
         lines = []

@@ -59,7 +59,7 @@ def test_train_then_evaluate(tmp_path, capsys):
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
-    assert {p.name for p in out.iterdir()} == {"model.zip", "vecnormalize.pkl", "run.json"}
+    assert {p.name for p in out.iterdir()} == {"model.zip", "vecnormalize.npz", "run.json"}
     from stable_baselines3.common.save_util import load_from_zip_file
 
     from srpb_gym.models import OBSERVATION_RECORD

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import srpb_gym
+from srpb_gym.models.normalization import save_vecnormalize
 from srpb_gym.models.record import record_observation
 from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.training.config import vecnormalize_kwargs
@@ -33,7 +34,7 @@ def train(
     scenario: str, robots: int, envs: int, steps: int, out: str, seed: int = 0,
     reward: str = "task",
 ) -> Path:  # fmt: skip
-    """Train PPO shared by every robot; writes ``model.zip``, ``vecnormalize.pkl`` (where
+    """Train PPO shared by every robot; writes ``model.zip``, ``vecnormalize.npz`` (where
     ``srpb-gym eval --policy`` looks) and ``run.json`` into ``out``; returns ``out``."""
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
@@ -51,7 +52,7 @@ def train(
     started = time.perf_counter()
     model.learn(total_timesteps=steps)
     model.save(folder / "model.zip")
-    venv.save(str(folder / "vecnormalize.pkl"))
+    save_vecnormalize(venv, folder / "vecnormalize.npz")
     record = {"scenario": scenario, "robots": robots, "envs": envs, "steps": steps,
               "seed": seed, "reward": reward, "wall_time_s": time.perf_counter() - started,
               "command": " ".join(sys.argv)}  # fmt: skip

@@ -10,13 +10,16 @@ evaluations' rule; a test seed there is refused), evaluates it once with the
 20,000,000 by default: :data:`srpb_gym.seeds.TEST`; each scenario of the mixture for a
 model trained on SRPB-Mix-v0; the environments made with the run's env kwargs but those
 of training only, see :func:`srpb_gym.training.targets.eval_setup`), and writes
-``model.zip``, ``vecnormalize.pkl``, ``evaluations.csv`` (the periodic evaluations of
+``model.zip``, ``vecnormalize.npz``, ``evaluations.csv`` (the periodic evaluations of
 training), ``card.json`` and ``card.md`` (environment id and version, reward preset and
 the weights it paid in each scenario, steps, wall time, machine, seed, command,
 hyperparameters, the test results, the seed range they were measured on, how many
 candidate runs were trained for the slot, ``--candidates``, and the ``srpb-gym eval``
 command that reproduces them). ``--workers N`` spreads the evaluations over N processes,
 as ``srpb-gym eval --workers`` (the same figures but for the computation times).
+
+The statistics are shipped as numbers (``vecnormalize.npz``); a run whose statistics are a
+pickle (``vecnormalize.pkl``, from before) is converted only with ``--trust-pickle``.
 """
 
 from __future__ import annotations
@@ -37,7 +40,13 @@ import yaml
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.harness import cpu, run_evaluation
 from srpb_gym.evaluation.spec import resolve_config
-from srpb_gym.models import settings_text, stamp_observation
+from srpb_gym.models import (
+    VECNORMALIZE,
+    VECNORMALIZE_PICKLE,
+    convert_vecnormalize,
+    settings_text,
+    stamp_observation,
+)
 from srpb_gym.observation import ObservationConfig
 from srpb_gym.seeds import CHECKPOINT_SELECTION, TEST, VALIDATION, check_not_test, range_of
 from srpb_gym.training.callbacks import eval_score, summarize_results
@@ -56,13 +65,15 @@ TEST_WARMUP = 0
 
 
 def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path,
-             env_kwargs: dict[str, Any] | None = None, workers: int = 1) -> dict:  # fmt: skip
-    """Test figures by env id of ``model`` (its vecnormalize.pkl beside it), the
-    environments made with ``env_kwargs``, the episodes spread over ``workers`` processes
-    (the same figures but for the computation times ``m_cef`` and ``m_cre``)."""
+             env_kwargs: dict[str, Any] | None = None, workers: int = 1,
+             trust_pickle: bool = False) -> dict:  # fmt: skip
+    """Test figures by env id of ``model`` (its statistics beside it), the environments
+    made with ``env_kwargs``, the episodes spread over ``workers`` processes (the same
+    figures but for the computation times ``m_cef`` and ``m_cre``); ``trust_pickle``: a
+    pickled statistics file is read."""
     config = resolve_config(env_ids, policies=[str(model)], episodes=episodes, seed=seed,
                             out=str(out), warmup=TEST_WARMUP, workers=workers, log=None,
-                            env_kwargs=env_kwargs)  # fmt: skip
+                            env_kwargs=env_kwargs, trust_pickle=trust_pickle)  # fmt: skip
     outcome = run_evaluation(config, log=lambda line: None)
     return summarize_results(outcome.results)
 
@@ -308,14 +319,17 @@ def same_model(a: Path, b: Path) -> bool:
     except zipfile.BadZipFile:  # not a model archive: the bytes decide
         if (a / "model.zip").read_bytes() != (b / "model.zip").read_bytes():
             return False
-    stats_a, stats_b = a / "vecnormalize.pkl", b / "vecnormalize.pkl"
-    if stats_a.is_file() != stats_b.is_file():
-        return False
-    return not stats_a.is_file() or stats_a.read_bytes() == stats_b.read_bytes()
+    for name in (VECNORMALIZE, VECNORMALIZE_PICKLE):
+        stats_a, stats_b = a / name, b / name
+        if stats_a.is_file() != stats_b.is_file():
+            return False
+        if stats_a.is_file() and stats_a.read_bytes() != stats_b.read_bytes():
+            return False
+    return True
 
 
 def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, Any] | None = None,
-           workers: int = 1, seed: int = VALIDATION_SEED,
+           workers: int = 1, seed: int = VALIDATION_SEED, trust_pickle: bool = False,
            ) -> tuple[Path, dict[str, Any]]:  # fmt: skip
     """``best/`` or the final model of ``run``, whichever scores higher
     (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then mean median m_psi)
@@ -332,7 +346,7 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
             figures[label] = figures["best"]
             continue
         figures[label] = evaluate(folder / "model.zip", env_ids, episodes, seed, work,
-                                  env_kwargs, workers)  # fmt: skip
+                                  env_kwargs, workers, trust_pickle)  # fmt: skip
     better = eval_score(figures["final"].values()) > eval_score(figures["best"].values())
     return (run if better else run / "best"), {
         "episodes": episodes,
@@ -344,10 +358,12 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
 
 def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
          validate: int = 0, workers: int = 1, candidates: int = 1,
-         validation_seed: int = VALIDATION_SEED) -> dict[str, Any]:  # fmt: skip
+         validation_seed: int = VALIDATION_SEED, trust_pickle: bool = False,
+         ) -> dict[str, Any]:  # fmt: skip
     """Package ``run`` as model ``name`` (see the module docstring): its test figures on
     ``episodes`` seeds from ``seed``, computed once, here; ``candidates``: the runs
-    trained for this slot, which the card states."""
+    trained for this slot, which the card states; ``trust_pickle``: a run whose statistics
+    are a pickle is read and its statistics converted."""
     if final and validate:
         raise ValueError("final and validate exclude each other")
     if candidates < 1:
@@ -362,13 +378,13 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     validation = None
     if validate and has_best:
         checkpoint, validation = choose(run, env_ids, validate, env_kwargs, workers,
-                                        validation_seed)  # fmt: skip
+                                        validation_seed, trust_pickle)  # fmt: skip
     else:
         checkpoint = run if final or not has_best else run / "best"
     work = run / "test"
     shutil.rmtree(work, ignore_errors=True)
     results = evaluate(checkpoint / "model.zip", env_ids, episodes, seed, work, env_kwargs,
-                       workers)  # fmt: skip
+                       workers, trust_pickle)  # fmt: skip
     # a model trained before models carried their observation settings gets them here (a
     # record that disagrees with the run's settings stops the packaging before it starts)
     observation = ObservationConfig.from_spec((env_kwargs or {}).get("observation"))
@@ -376,9 +392,11 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     target = MODELS_DIR / name
     shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
     target.mkdir(parents=True)
-    for file in ("model.zip", "vecnormalize.pkl"):  # no statistics without normalize
-        if (checkpoint / file).is_file():
-            shutil.copyfile(checkpoint / file, target / file)
+    shutil.copyfile(checkpoint / "model.zip", target / "model.zip")
+    if (checkpoint / VECNORMALIZE).is_file():  # no statistics without normalize
+        shutil.copyfile(checkpoint / VECNORMALIZE, target / VECNORMALIZE)
+    elif (checkpoint / VECNORMALIZE_PICKLE).is_file():  # read above: trusted
+        convert_vecnormalize(checkpoint / VECNORMALIZE_PICKLE, target / VECNORMALIZE)
     if (run / "evaluations.csv").is_file():
         shutil.copyfile(run / "evaluations.csv", target / "evaluations.csv")
     card = {
@@ -412,7 +430,7 @@ def _range_name(seed: int, episodes: int) -> str:
     return first.name if first is not None and first == last else "unreserved"
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="package a training run as a shipped model")
     parser.add_argument("run", type=Path, help="the run folder of srpb-gym train")
     parser.add_argument("--name", required=True, help="short name, e.g. ppo-crowd-srpb")
@@ -433,7 +451,11 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=1, metavar="N",
                         help="evaluation processes (default: 1; the same figures but for "
                         "the computation times m_cef and m_cre)")  # fmt: skip
-    args = parser.parse_args()
+    parser.add_argument("--trust-pickle", action="store_true",
+                        help="read a run's pickled statistics (vecnormalize.pkl, from "
+                        "before srpb-gym kept them as numbers) and ship them "
+                        "converted")  # fmt: skip
+    args = parser.parse_args(argv)
     if args.final and args.validate:
         parser.error("--final and --validate exclude each other")
     if args.workers < 1:
@@ -451,8 +473,13 @@ def main() -> int:
         print(f"note: seeds {args.seed}-{args.seed + args.episodes - 1} are not the "
               f"{TEST.text()}: the card names the range they are in",
               file=sys.stderr)  # fmt: skip
-    card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate,
-                args.workers, args.candidates, args.validation_seed)  # fmt: skip
+    try:
+        card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate,
+                    args.workers, args.candidates, args.validation_seed,
+                    args.trust_pickle)  # fmt: skip
+    except InputError as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+        return 2
     for env_id, f in card["test"]["results"].items():
         print(f"{args.name} on {env_id}: success {100 * f['success']:.0f}%, "
               f"collision {100 * f['collision']:.0f}%, m_psi {f['m_psi']:.3g}, "

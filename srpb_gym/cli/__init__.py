@@ -9,11 +9,12 @@ Usage::
                   [--policy-algo ALGO] [--vecnormalize FILE|none] [--episodes N] [--seed S]
                   [--out DIR] [--resume] [--workers N] [--warmup STEPS] [--video [K]]
                   [--video-stride K] [--robots N] [--semantics S] [--preset P]
-                  [--env-kwargs KEY=VALUE ...]
+                  [--env-kwargs KEY=VALUE ...] [--trust-pickle]
     srpb-gym compare DIR [DIR ...] [--out DIR] [--separate]
     srpb-gym train --env ID [--reward PRESET] [--seed S] [--steps N]
                    [--hyperparams KEY=VALUE ...] [--env-kwargs KEY=VALUE ...] [--config FILE]
-                   [--out DIR] [--no-progress]
+                   [--out DIR] [--max-minutes M] [--init MODEL] [--init-new-observation]
+                   [--trust-pickle] [--no-progress]
     srpb-gym --version
 
 Every subcommand is registered by one ``add_<name>_command(subparsers)`` function listed in

@@ -61,8 +61,14 @@ def add_eval_command(subparsers: Any) -> None:
                         "or DQN (default: read from each file)")  # fmt: skip
     p.add_argument("--vecnormalize", default="auto", metavar="FILE",
                    help="observation-normalisation statistics of the --policy files, or "
-                        "'none' for raw observations (default: vecnormalize.pkl where "
-                        "srpb-gym train or the RL Zoo put it, see docs/evaluation.md)")  # fmt: skip
+                        "'none' for raw observations (default: vecnormalize.npz or .pkl "
+                        "where srpb-gym train or the RL Zoo put it, see "
+                        "docs/evaluation.md)")  # fmt: skip
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="let the --policy files' pickles run: a vecnormalize.pkl and the "
+                        "pickled attributes of a model.zip (a pickle is code; without it "
+                        "a .pkl is refused and a model's attributes are read as data "
+                        "only)")  # fmt: skip
     p.add_argument("--episodes", type=int, default=5, metavar="N", help="per pair (default: 5)")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="first seed (default: 0)")
     p.add_argument("--out", metavar="DIR",
@@ -114,7 +120,7 @@ def run_eval(args: argparse.Namespace) -> int:
         planner_settings=planner_settings(args.planner_config, args.planner_param),
         argv=getattr(args, "argv", ()), warmup=args.warmup, resume=args.resume, log=stderr,
         robots=args.robots, env_kwargs=parse_overrides(args.env_kwargs, "--env-kwargs"),
-        video_stride=args.video_stride,
+        video_stride=args.video_stride, trust_pickle=args.trust_pickle,
     )  # fmt: skip
     try:
         outcome = run_evaluation(config, log=stderr)

@@ -37,7 +37,8 @@ class PlannerSpec:
     """A planner to evaluate: a registered one (``planner`` with the settings ``config``,
     plain data: the fields to change, see :func:`srpb_gym.planners.make_planner`) or a
     learned policy file (``policy``, its ``algo``, the ``vecnormalize`` statistics or
-    ``None`` for raw observations, and the places searched for them); ``name`` labels its
+    ``None`` for raw observations, and the places searched for them; ``trust_pickle``:
+    the user trusts the file's pickles, see :class:`LearnedPolicy`); ``name`` labels its
     results."""
 
     name: str
@@ -47,12 +48,14 @@ class PlannerSpec:
     algo: str | None = None
     vecnormalize: str | None = None
     vecnormalize_searched: tuple[str, ...] = ()
+    trust_pickle: bool = False
 
     def build(self) -> Planner:
         """A fresh planner instance."""
         if self.policy is None:
             return make_planner(str(self.planner), dict(self.config) or None)
-        return LearnedPolicy(self.policy, self.algo, self.vecnormalize)
+        return LearnedPolicy(self.policy, self.algo, self.vecnormalize,
+                             trust_pickle=self.trust_pickle)  # fmt: skip
 
     def describe(self, planner: Planner | None = None) -> dict[str, Any]:
         """Plain-data description for ``config.json``: the class, the settings given

@@ -15,6 +15,7 @@ torch are imported (by those modules) only when a policy is given.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -32,6 +33,7 @@ from srpb_gym.models import (
     model_names,
     observation_config_of,
     settings_text,
+    stray_vecnormalize,
     vecnormalize_candidates,
 )
 from srpb_gym.planners import Planner
@@ -44,6 +46,7 @@ def policy_specs(
     vecnormalize: str | None,
     probe: EvalConfig,
     note: Callable[[str], None],
+    trust_pickle: bool = False,
 ) -> list[PlannerSpec]:
     """One spec per policy: a model file, a ``srpb-gym train`` run folder or a shipped
     model's short name, named after the file's stem, the folder or the short name (with
@@ -51,7 +54,9 @@ def policy_specs(
     share a stem). ``algo``: forced algorithm or ``None`` (read from each file);
     ``vecnormalize``: ``"auto"``, a file, or ``None``/``"none"`` (raw observations).
     ``probe`` gives the environments; ``note`` receives one line per policy saying which
-    algorithm and which normalisation statistics it uses."""
+    algorithm and which normalisation statistics it uses. ``trust_pickle``: the user
+    trusts the files' pickles (``--trust-pickle``; otherwise a pickled statistics file is
+    refused and a model's pickled attributes are decoded as data only)."""
     if not paths:
         return []
     if algo is not None and algo.upper() not in ALGORITHMS:
@@ -67,11 +72,9 @@ def policy_specs(
             raise InputError("the same model is given twice", paths[i], key="--policy")
     specs = []
     for (path, _), name in zip(resolved, _unique_names([parts for _, parts in resolved])):
-        spec = _policy_spec(name, path, algo, vecnormalize, probe.envs)
+        spec = _policy_spec(name, path, algo, vecnormalize, probe.envs, trust_pickle)
         policy = load_policy(spec)
-        spec = PlannerSpec(name=spec.name, policy=spec.policy, algo=policy.algo,
-                           vecnormalize=spec.vecnormalize,
-                           vecnormalize_searched=spec.vecnormalize_searched)  # fmt: skip
+        spec = dataclasses.replace(spec, algo=policy.algo)
         how = "forced by --policy-algo" if algo is not None else "read from the file"
         note(
             f"note: policy {name}: {policy.algo} model ({how}); "
@@ -118,22 +121,35 @@ def _unique_names(parts: Sequence[Sequence[str]]) -> list[str]:
             depth[i] += 1
 
 
-def _policy_spec(
-    name: str, path: str, algo: str | None, vecnormalize: str | None, env_ids: Sequence[str]
-) -> PlannerSpec:
+def _policy_spec(name: str, path: str, algo: str | None, vecnormalize: str | None,
+                 env_ids: Sequence[str], trust_pickle: bool = False) -> PlannerSpec:  # fmt: skip
     searched: tuple[str, ...] = ()
     if vecnormalize == "auto":
         searched = tuple(str(p) for p in vecnormalize_candidates(path, env_ids))
         vecnormalize = find_vecnormalize(path, env_ids)
+        if vecnormalize is None:
+            _refuse_stray(path, env_ids)
     return PlannerSpec(name=name, policy=path, algo=None if algo is None else algo.upper(),
-                       vecnormalize=vecnormalize, vecnormalize_searched=searched)  # fmt: skip
+                       vecnormalize=vecnormalize, vecnormalize_searched=searched,
+                       trust_pickle=trust_pickle)  # fmt: skip
+
+
+def _refuse_stray(path: str, env_ids: Sequence[str]) -> None:
+    """Refuse a model without statistics where training puts them whose folder holds
+    statistics elsewhere: they may be another model's, and raw observations may be wrong."""
+    stray = stray_vecnormalize(path, env_ids)
+    if stray:
+        raise InputError(f"no statistics where training puts them, but {stray[0]} lies in "
+                         "another folder and may be another model's: give the model's "
+                         "statistics with --vecnormalize FILE, or --vecnormalize none for "
+                         "raw observations", path, key="--policy")  # fmt: skip
 
 
 def _normalisation(spec: PlannerSpec) -> str:
     if spec.vecnormalize is not None:
         return f"observations normalised with {spec.vecnormalize}"
     if spec.vecnormalize_searched:
-        return ("no vecnormalize.pkl found (looked for "
+        return ("no statistics found (looked for "
                 f"{', '.join(spec.vecnormalize_searched)}): raw observations")  # fmt: skip
     return "raw observations (--vecnormalize none)"
 

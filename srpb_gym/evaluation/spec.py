@@ -73,6 +73,7 @@ def resolve_config(
     robots: int = 1,
     env_kwargs: Mapping[str, Any] | None = None,
     video_stride: int = 1,
+    trust_pickle: bool = False,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
     planner (:data:`~srpb_gym.planners.PLANNERS`; a reference planner of
@@ -94,7 +95,8 @@ def resolve_config(
     the ``observation`` a policy was trained with), checked by making each environment
     (errors: key ``--env-kwargs``); the keys the evaluation sets itself
     (:data:`RESERVED_ENV_KWARGS`) are refused. ``video_stride``: film every this many
-    control steps (at least 1).
+    control steps (at least 1). ``trust_pickle``: the user trusts the pickles of the policy
+    files (see :func:`~srpb_gym.evaluation.policies.policy_specs`).
     """
     notes: list[str] = []
 
@@ -124,7 +126,7 @@ def resolve_config(
         if spec.planner in REFERENCE_PLANNERS:
             note(f"note: {spec.name} is a reference planner, handed the true people instead "
                  "of the tracker's: no baseline")  # fmt: skip
-    specs += policy_specs(policies, policy_algo, vecnormalize, probe, note)
+    specs += policy_specs(policies, policy_algo, vecnormalize, probe, note, trust_pickle)
     names = [s.name for s in specs]
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)

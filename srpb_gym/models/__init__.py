@@ -1,7 +1,7 @@
 """Trained models: the shipped ones, loadable by their short names, and every model file.
 
 Each shipped model is a folder ``srpb_gym/models/<name>/`` holding ``model.zip`` (a
-stable-baselines3 PPO model), ``vecnormalize.pkl`` (its observation statistics),
+stable-baselines3 PPO model), ``vecnormalize.npz`` (its observation statistics, numbers),
 ``card.md`` (its model card: environment id and version, reward preset and the weights
 of each scenario, steps, wall time, machine, seed, command, results) and ``card.json``
 (the same facts as data). Names follow ``ppo-<scenario>-<preset>``, e.g.
@@ -19,8 +19,13 @@ The modules, each importable without stable-baselines3 and torch:
 * :mod:`srpb_gym.models.files`: the files a name, path or run folder names
   (:func:`find_model`, :func:`resolve_model`) and their normalisation statistics
   (:func:`find_vecnormalize`);
-* :mod:`srpb_gym.models.loading`: loading a model and its statistics
-  (:func:`load_model`, :func:`load_vecnormalize`) and their errors;
+* :mod:`srpb_gym.models.loading`: loading a model (:func:`load_model`) and the errors of
+  loading; a model file's pickles are never unpickled unless trusted
+  (:mod:`srpb_gym.models.safe_data`: its saved attributes decoded as data only; its
+  tensors read with ``weights_only=True``);
+* :mod:`srpb_gym.models.normalization`: the normalisation statistics as numbers
+  (``vecnormalize.npz``: :func:`load_vecnormalize`, :func:`save_vecnormalize`), a pickled
+  ``vecnormalize.pkl`` read only when trusted (``--trust-pickle``);
 * :mod:`srpb_gym.models.record`: the observation settings a model was trained with
   (:data:`OBSERVATION_RECORD`);
 * :mod:`srpb_gym.models.forward`: the fixed-order forward pass of a PPO or A2C
@@ -31,9 +36,11 @@ from __future__ import annotations
 
 from srpb_gym.models.files import (
     VECNORMALIZE,
+    VECNORMALIZE_PICKLE,
     find_model,
     find_vecnormalize,
     resolve_model,
+    stray_vecnormalize,
     vecnormalize_candidates,
 )
 from srpb_gym.models.forward import FixedOrderPolicy, UnsupportedPolicyError, fixed_order_policy
@@ -44,9 +51,14 @@ from srpb_gym.models.loading import (
     detect_algorithm,
     global_rngs_kept,
     load_model,
-    load_vecnormalize,
     model_data,
     model_steps,
+)
+from srpb_gym.models.normalization import (
+    Normalization,
+    convert_vecnormalize,
+    load_vecnormalize,
+    save_vecnormalize,
 )
 from srpb_gym.models.record import (
     OBSERVATION_RECORD,
@@ -64,12 +76,13 @@ from srpb_gym.models.record import (
 )
 from srpb_gym.models.shipped import MODEL_FILE, card, model_names, model_path
 
-__all__ = ["ALGORITHMS", "MODEL_FILE", "OBSERVATION_RECORD", "VECNORMALIZE", "FixedOrderPolicy",
-           "PolicyFileError", "UnsupportedPolicyError", "VecNormalizeError", "card",
+__all__ = ["ALGORITHMS", "MODEL_FILE", "OBSERVATION_RECORD", "VECNORMALIZE",
+           "VECNORMALIZE_PICKLE", "FixedOrderPolicy", "Normalization", "PolicyFileError",
+           "UnsupportedPolicyError", "VecNormalizeError", "card", "convert_vecnormalize",
            "describe_space", "detect_algorithm", "find_model", "find_vecnormalize",
            "fixed_order_policy", "global_rngs_kept", "lidar_beams_of", "load_model",
            "load_vecnormalize", "model_data", "model_names", "model_path", "model_steps",
            "observation_config_of", "observation_mismatch", "read_record",
-           "record_observation", "recorded_observation", "resolve_model", "settings_mismatch",
-           "settings_text", "spaces_differ", "stamp_observation",
-           "vecnormalize_candidates"]  # fmt: skip
+           "record_observation", "recorded_observation", "resolve_model",
+           "save_vecnormalize", "settings_mismatch", "settings_text", "spaces_differ",
+           "stamp_observation", "stray_vecnormalize", "vecnormalize_candidates"]  # fmt: skip

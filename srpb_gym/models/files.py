@@ -1,5 +1,7 @@
 """Finding a model's files: the ``model.zip`` that a name, path or run folder names, and the
-observation-normalisation statistics (``vecnormalize.pkl``) trained with it.
+observation-normalisation statistics trained with it (``vecnormalize.npz``, or the
+``vecnormalize.pkl`` pickle of stable-baselines3 and the RL Zoo, which loads only when
+trusted: :mod:`srpb_gym.models.normalization`), looked for only where training puts them.
 
 :func:`find_model` is how every part of srpb-gym finds a model (``srpb-gym eval
 --policy``, ``srpb-gym train --init``, the teachers of a warm start);
@@ -17,7 +19,12 @@ from pathlib import Path
 from srpb_gym.errors import InputError
 from srpb_gym.models.shipped import MODEL_FILE, model_path
 
-VECNORMALIZE = "vecnormalize.pkl"
+VECNORMALIZE = "vecnormalize.npz"
+"""The statistics file srpb-gym writes beside a model (numbers only)."""
+VECNORMALIZE_PICKLE = "vecnormalize.pkl"
+"""The statistics file of stable-baselines3's ``VecNormalize.save`` and the RL Zoo (a
+pickle)."""
+_NAMES = (VECNORMALIZE, VECNORMALIZE_PICKLE)
 
 
 def find_model(given: str) -> str | None:
@@ -31,7 +38,7 @@ def find_model(given: str) -> str | None:
 
 
 def resolve_model(given: str, key: str) -> tuple[str, str | None]:
-    """The ``model.zip`` (:func:`find_model`) and ``vecnormalize.pkl`` (or ``None``:
+    """The ``model.zip`` (:func:`find_model`) and statistics file (or ``None``:
     :func:`find_vecnormalize`) that ``given`` names; an :class:`InputError` naming the
     setting ``key`` when it names no model."""
     path = find_model(given)
@@ -44,23 +51,18 @@ def resolve_model(given: str, key: str) -> tuple[str, str | None]:
 def vecnormalize_candidates(
     path: str | os.PathLike[str], env_ids: Sequence[str] = ()
 ) -> list[Path]:
-    """Where observation-normalisation statistics of the model ``path`` may lie, in order:
-    ``<stem>_vecnormalize.pkl`` and ``vecnormalize.pkl`` beside it (``srpb-gym train``:
-    ``<run>/vecnormalize.pkl`` beside ``<run>/model.zip``), then the RL Zoo's
-    ``<run>/<env_id>/vecnormalize.pkl`` beside ``<run>/<env_id>.zip`` or
-    ``<run>/best_model.zip``: ``<stem>/``, each of ``env_ids`` as a subfolder, and the
-    model folder's only subfolder holding one."""
+    """Where observation-normalisation statistics of the model ``path`` may lie, in order,
+    each place as ``vecnormalize.npz`` then ``vecnormalize.pkl``: ``<stem>_vecnormalize.*``
+    and ``vecnormalize.*`` beside it (``srpb-gym train``: ``<run>/vecnormalize.npz``
+    beside ``<run>/model.zip``), then the RL Zoo's ``<run>/<env_id>/vecnormalize.pkl``
+    beside ``<run>/<env_id>.zip`` or ``<run>/best_model.zip``: ``<stem>/`` and each of
+    ``env_ids`` as a subfolder. Nowhere else: statistics in another subfolder may be
+    another model's (:func:`stray_vecnormalize`)."""
     model = Path(path)
     folder = model.parent
-    out = [model.with_name(f"{model.stem}_{VECNORMALIZE}"), folder / VECNORMALIZE,
-           folder / model.stem / VECNORMALIZE]  # fmt: skip
-    out += [folder / env_id / VECNORMALIZE for env_id in env_ids]
-    try:
-        found = sorted(p for p in folder.glob(f"*/{VECNORMALIZE}") if p.is_file())
-    except OSError:
-        found = []
-    if len(found) == 1:
-        out.append(found[0])
+    places = [(folder, f"{model.stem}_"), (folder, ""), (folder / model.stem, "")]
+    places += [(folder / env_id, "") for env_id in env_ids]
+    out = [where / f"{prefix}{name}" for where, prefix in places for name in _NAMES]
     return list(dict.fromkeys(out))
 
 
@@ -70,3 +72,16 @@ def find_vecnormalize(path: str | os.PathLike[str], env_ids: Sequence[str] = ())
         if candidate.is_file():
             return str(candidate)
     return None
+
+
+def stray_vecnormalize(path: str | os.PathLike[str], env_ids: Sequence[str] = ()) -> list[Path]:
+    """Statistics files in the subfolders of the model ``path``'s folder that are none of
+    its :func:`vecnormalize_candidates`: they may belong to another model, so they are
+    never taken for this one (an evaluation asks for ``--vecnormalize FILE`` instead)."""
+    folder = Path(path).parent
+    known = set(vecnormalize_candidates(path, env_ids))
+    try:
+        found = [p for name in _NAMES for p in folder.glob(f"*/{name}") if p.is_file()]
+    except OSError:
+        return []
+    return sorted(p for p in found if p not in known)

@@ -1,11 +1,15 @@
-"""Loading a stable-baselines3 model file and its ``VecNormalize`` statistics.
+"""Loading a stable-baselines3 model file, without running the code a file may carry.
 
 :func:`load_model` loads a model on the CPU, its algorithm read from the file
-(:func:`detect_algorithm`), leaving the global random generators as they were;
-:func:`load_vecnormalize` loads the statistics in evaluation mode. stable-baselines3 and
+(:func:`detect_algorithm`), leaving the global random generators as they were. A model
+file holds pickles (the saved attributes that JSON cannot hold), and a pickle is code:
+the model's ``data`` entries are decoded by :mod:`srpb_gym.models.safe_data`, which
+builds data only, and its tensors are read with ``torch.load(..., weights_only=True)``
+(:func:`tensors_only`), whatever the version of stable-baselines3; only ``trust_pickle``
+(``--trust-pickle``) lets stable-baselines3 unpickle what it finds. stable-baselines3 and
 torch come from the ``train`` extra and are imported only when a file is loaded, so this
 module imports without them; reading a file's saved attributes (:func:`model_data`) needs
-neither.
+neither. The normalisation statistics of a model are :mod:`srpb_gym.models.normalization`'s.
 
 Failures are one line naming the file: :class:`PolicyFileError` for a model that cannot be
 loaded, :class:`VecNormalizeError` for a normalisation file that cannot be used.
@@ -15,13 +19,14 @@ from __future__ import annotations
 
 import json
 import os
-import pickle
 import zipfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
 
 import numpy as np
+
+from srpb_gym.models.safe_data import UnsafeEntryError, safe_objects
 
 INSTALL_HINT = 'pip install "srpb-gym[train]"'
 ALGORITHMS: tuple[str, ...] = ("PPO", "A2C", "SAC", "TD3", "DDPG", "DQN")
@@ -143,27 +148,61 @@ def global_rngs_kept() -> Iterator[None]:
             torch.cuda.set_rng_state_all(cuda_states)
 
 
-def _load_as(name: str, path: str) -> tuple[Any, str]:
-    """The model in ``path`` loaded as algorithm ``name`` on the CPU, and ``name``; the
+@contextmanager
+def tensors_only() -> Iterator[None]:
+    """Make every ``torch.load`` inside read tensors only (``weights_only=True``, which
+    refuses any other pickled object), whatever its caller asks: stable-baselines3 2.4 to
+    2.7 read a model's ``policy.pth`` with ``weights_only=False``."""
+    import torch
+
+    original = torch.load
+
+    def load(*args: Any, **kwargs: Any) -> Any:
+        kwargs["weights_only"] = True
+        return original(*args, **kwargs)
+
+    torch.load = load
+    try:
+        yield
+    finally:
+        torch.load = original
+
+
+def _load_as(name: str, path: str, custom: dict[str, Any] | None) -> tuple[Any, str]:
+    """The model in ``path`` loaded as algorithm ``name`` on the CPU, and ``name``, its
+    pickled entries replaced by ``custom`` (``None``: unpickled, a trusted file); the
     global random generators as they were."""
+    cls = algorithm_class(name)
     with global_rngs_kept():
-        return algorithm_class(name).load(path, device="cpu"), name
+        if custom is None:
+            return cls.load(path, device="cpu"), name
+        with tensors_only():
+            return cls.load(path, device="cpu", custom_objects=custom), name
 
 
-def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[Any, str]:
+def load_model(path: str | os.PathLike[str], algo: str | None = None,
+               trust_pickle: bool = False) -> tuple[Any, str]:  # fmt: skip
     """Load a model on the CPU; returns it and its algorithm. The global random generators
     are left as they were (:func:`global_rngs_kept`).
 
     ``algo``: force one of :data:`ALGORITHMS`; ``None`` detects it from the file
-    (:func:`detect_algorithm`), else tries each algorithm in turn. Raises
-    :class:`PolicyFileError` naming the file, the algorithm(s) tried and why they failed.
+    (:func:`detect_algorithm`), else tries each algorithm in turn. ``trust_pickle``: let
+    stable-baselines3 unpickle the file's saved attributes and tensors (it may run code);
+    otherwise none is unpickled (module doc). Raises :class:`PolicyFileError` naming the
+    file, the algorithm(s) tried and why they failed.
     """
     path = os.fspath(path)
     detected = detect_algorithm(path)
+    custom = None
+    if not trust_pickle:
+        try:
+            custom = safe_objects(model_data(path))
+        except UnsafeEntryError as exc:
+            raise PolicyFileError(path, str(exc)) from None
     if algo is not None:
         name = algo.upper()
         try:
-            return _load_as(name, path)
+            return _load_as(name, path, custom)
         except ImportError:
             raise
         except Exception as exc:
@@ -174,7 +213,7 @@ def load_model(path: str | os.PathLike[str], algo: str | None = None) -> tuple[A
     failures = []
     for name in order:
         try:
-            return _load_as(name, path)
+            return _load_as(name, path, custom)
         except ImportError:
             raise
         except Exception as exc:
@@ -188,34 +227,8 @@ def _why(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text[0]}" if text else type(exc).__name__
 
 
-def load_vecnormalize(path: str | os.PathLike[str]) -> Any:
-    """The ``VecNormalize`` object saved at ``path`` (without its environment), set to
-    evaluation mode (its statistics frozen).
-
-    Raises :class:`VecNormalizeError` naming the file when it cannot be read, is corrupt or
-    holds something else.
-    """
-    import_sb3()
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    where = os.fspath(path)
-    try:
-        with open(path, "rb") as f:
-            obj = pickle.load(f)  # the user's own training artefact
-    except OSError as exc:
-        raise VecNormalizeError(where, f"cannot read: {exc.strerror or exc}") from None
-    except Exception as exc:  # truncated, garbled or foreign pickle
-        raise VecNormalizeError(where, f"corrupt VecNormalize file ({_why(exc)})") from None
-    if not isinstance(obj, VecNormalize):
-        raise VecNormalizeError(where, f"not a VecNormalize file (holds {type(obj).__name__})")
-    obj.training = False
-    obj.norm_reward = False
-    return obj
-
-
-def model_steps(path: str) -> int:
-    """The training steps a saved SB3 model had taken (its ``num_timesteps``)."""
-    from stable_baselines3.common.save_util import load_from_zip_file
-
-    data, _, _ = load_from_zip_file(path, device="cpu", load_data=True)
-    return int(data.get("num_timesteps", 0))
+def model_steps(path: str | os.PathLike[str]) -> int:
+    """The training steps a saved SB3 model had taken (its ``num_timesteps``), read from
+    its ``data`` JSON (nothing unpickled); 0 when it records none."""
+    steps = model_data(path).get("num_timesteps", 0)
+    return int(steps) if isinstance(steps, int) and not isinstance(steps, bool) else 0

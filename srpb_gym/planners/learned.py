@@ -11,7 +11,9 @@ loaded model to the planner interface.
 
 Failures are one line naming the file: :class:`~srpb_gym.models.loading.PolicyFileError`
 for a model that cannot be loaded, :class:`~srpb_gym.models.loading.VecNormalizeError` for
-a normalisation file that cannot be used.
+a normalisation file that cannot be used. Nothing a model file or a statistics file
+pickles is unpickled unless ``trust_pickle`` says that the user trusts them (a pickle is
+code: :mod:`srpb_gym.models.loading`, :mod:`srpb_gym.models.normalization`).
 
 A model trained by ``srpb-gym train`` holds the observation settings it was trained with
 (:data:`~srpb_gym.models.record.OBSERVATION_RECORD`, saved in its ``model.zip``), and
@@ -42,12 +44,8 @@ from srpb_gym.errors import InputError
 from srpb_gym.knowledge import Knowledge
 from srpb_gym.models.files import find_vecnormalize
 from srpb_gym.models.forward import FixedOrderPolicy, UnsupportedPolicyError, fixed_order_policy
-from srpb_gym.models.loading import (
-    PolicyFileError,
-    VecNormalizeError,
-    load_model,
-    load_vecnormalize,
-)
+from srpb_gym.models.loading import PolicyFileError, VecNormalizeError, load_model
+from srpb_gym.models.normalization import load_vecnormalize
 from srpb_gym.models.record import (
     OBSERVATION_RECORD,
     describe_space,
@@ -70,7 +68,10 @@ class LearnedPolicy(Planner):
     ``path``: the model ``.zip``; ``algo``: its algorithm (see :data:`ALGORITHMS`), ``None``
     to read it from the file; ``vecnormalize``: a ``VecNormalize`` file, ``"auto"``
     (default) to look where training puts it (:func:`find_vecnormalize`) or ``None`` for
-    raw observations; ``deterministic``: take the mode of the action distribution.
+    raw observations; ``deterministic``: take the mode of the action distribution;
+    ``trust_pickle``: let the model file's pickled attributes and a pickled statistics
+    file (``vecnormalize.pkl``) be unpickled, which may run code (otherwise the first
+    are decoded as data only and the second refused).
 
     A model that records its observation settings (``observation_config``) observes with
     them: each step it builds its observation from the :class:`Knowledge` snapshot, exactly
@@ -97,10 +98,12 @@ class LearnedPolicy(Planner):
         algo: str | None = None,
         vecnormalize: str | os.PathLike[str] | None = "auto",
         deterministic: bool = True,
+        trust_pickle: bool = False,
     ) -> None:
         self.path = os.fspath(path)
         self.deterministic = deterministic
-        self.model, self.algo = load_model(self.path, algo)
+        self.trust_pickle = trust_pickle
+        self.model, self.algo = load_model(self.path, algo, trust_pickle)
         record = getattr(self.model, OBSERVATION_RECORD, None)
         try:
             self.observation_config = None if record is None else recorded_observation(record)
@@ -123,9 +126,9 @@ class LearnedPolicy(Planner):
         self.vecnormalize = None if vecnormalize is None else os.fspath(vecnormalize)
         self._normalizer = None
         if self.vecnormalize is not None:
-            self._normalizer = load_vecnormalize(self.vecnormalize)
-            stats = getattr(self._normalizer, "observation_space", None)
-            if stats is not None and spaces_differ(stats, self.model.observation_space):
+            self._normalizer = load_vecnormalize(self.vecnormalize, trust_pickle)
+            stats = self._normalizer.observation_space
+            if spaces_differ(stats, self.model.observation_space):
                 raise VecNormalizeError(
                     self.vecnormalize,
                     f"statistics of the observation space "

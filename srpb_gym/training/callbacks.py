@@ -36,6 +36,7 @@ from tqdm import tqdm
 from srpb_gym.evaluation import harness, spec
 from srpb_gym.metrics.episode import METRIC_NAMES
 from srpb_gym.models.files import VECNORMALIZE
+from srpb_gym.models.normalization import save_vecnormalize
 from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.reward import TERMS
 from srpb_gym.seeds import CHECKPOINT_SELECTION, check_not_test, check_within
@@ -357,9 +358,9 @@ def summarize_results(results: Sequence[Any]) -> dict[str, dict[str, float]]:
 
 
 def save_checkpoint(model: Any, folder: str) -> None:
-    """``model.zip`` and (when training normalises) ``vecnormalize.pkl`` in ``folder``."""
+    """``model.zip`` and (when training normalises) ``vecnormalize.npz`` in ``folder``."""
     os.makedirs(folder, exist_ok=True)
     model.save(os.path.join(folder, MODEL_FILE))
     venv = model.get_vec_normalize_env()
     if venv is not None:
-        venv.save(os.path.join(folder, VECNORMALIZE))
+        save_vecnormalize(venv, os.path.join(folder, VECNORMALIZE))

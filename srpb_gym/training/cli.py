@@ -28,7 +28,7 @@ def add_train_command(subparsers: Any) -> None:
             "Train PPO (stable-baselines3) on a registered id or SRPB-Mix-v0, with the "
             "hyperparameters of configs/train/ppo.yaml for that id (its 'default' entry "
             "first), overridden by --hyperparams. The run folder gets model.zip, "
-            "vecnormalize.pkl, best/ (the best periodic evaluation), config.yaml, "
+            "vecnormalize.npz, best/ (the best periodic evaluation), config.yaml, "
             "command.txt, run.json (seed, versions, machine, wall time), progress.csv and "
             "TensorBoard logs (tb/: every reward term, every srpb/* metric, eval/*). "
             "Ctrl-C or SIGTERM saves the model and stops. At the end it prints the "
@@ -59,6 +59,10 @@ def add_train_command(subparsers: Any) -> None:
                    "same shape, to fine-tune it to this run's (e.g. --env-kwargs "
                    "'observation={lidar_groups: 0.01}'); without it such a model is "
                    "refused")  # fmt: skip
+    p.add_argument("--trust-pickle", action="store_true",
+                   help="let the pickles of --init and of the warm start's teachers run: a "
+                   "vecnormalize.pkl and a model.zip's pickled attributes (a pickle is "
+                   "code; without it a .pkl is refused)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run_train)
 
@@ -83,6 +87,7 @@ def run_train(args: argparse.Namespace) -> int:
                    env_kwargs=env_kwargs, progress=not args.no_progress,
                    argv=getattr(args, "argv", ()), max_minutes=args.max_minutes,
                    init=args.init, init_new_observation=args.init_new_observation,
+                   trust_pickle=args.trust_pickle,
                    log=lambda line: print(f"srpb-gym: {line}", file=sys.stderr))  # fmt: skip
     state = "interrupted" if result.interrupted else "finished"
     print(f"{state} after {result.steps} steps in {result.wall_time:.0f} s; run in {result.out}")

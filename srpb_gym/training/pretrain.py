@@ -93,16 +93,18 @@ class Demonstrations:
         return dict(sorted(out.items()))
 
 
-def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> Planner:
+def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner",
+                 trust_pickle: bool = False) -> Planner:  # fmt: skip
     """The planner behind ``teacher``: a classical planner by its name, or a learned one
     (a shipped model's name, a model file or a run folder holding ``model.zip``, with its
-    observation statistics), checked to act on ``env``'s spaces. Failures are an
-    :class:`InputError` naming ``key``."""
+    observation statistics; their pickles unpickled only with ``trust_pickle``), checked
+    to act on ``env``'s spaces. Failures are an :class:`InputError` naming ``key``."""
     if teacher in PLANNERS:
         return make_planner(teacher)
     try:
         path, vecnormalize = resolve_model(teacher, key)
-        policy = load_policy(PlannerSpec(name=teacher, policy=path, vecnormalize=vecnormalize))
+        policy = load_policy(PlannerSpec(name=teacher, policy=path, vecnormalize=vecnormalize,
+                                         trust_pickle=trust_pickle))  # fmt: skip
         policy.check_spaces(env.observation_space, env.action_space, lidar_beams_of(env))
     except InputError as exc:
         raise InputError(exc.message, exc.path, key=key) from None
@@ -114,7 +116,8 @@ def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner") -> P
 def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: int,
             noise: float, seed: int = DEMO_SEED,
             teachers: Mapping[str, str] | None = None,
-            driver: Driver | None = None) -> Demonstrations:  # fmt: skip
+            driver: Driver | None = None,
+            trust_pickle: bool = False) -> Demonstrations:  # fmt: skip
     """Drive ``episodes`` episodes of ``env_id`` (seeds from ``seed``) with ``planner``
     (executed actions with Gaussian noise ``noise``, drawn from a generator seeded with
     ``seed``). ``teachers``: the teacher of each scenario of a mixture
@@ -122,7 +125,8 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
     teacher for every scenario. ``driver``: a policy (raw observation -> action) that
     drives instead of the teachers, which then only label each step with their action
     (DAgger); ``reached`` is then the driver's success. Seeds that meet the test seeds, or
-    leave the demonstration seeds, are an :class:`InputError` (``pretrain seed``)."""
+    leave the demonstration seeds, are an :class:`InputError` (``pretrain seed``).
+    ``trust_pickle``: let the pickles of learned teachers be unpickled."""
     check_not_test(seed, episodes, "pretrain seed")
     check_within(DEMONSTRATIONS, seed, episodes, "pretrain seed")
     env = gym.make(env_id, **env_kwargs)
@@ -143,11 +147,11 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
             raise InputError(f"no teacher for {', '.join(untaught) or env_id}: name it in "
                              "pretrain_teachers or give pretrain_planner",
                              key="pretrain_planner")  # fmt: skip
-        agents = {name: make_teacher(teacher, env, f"pretrain_teachers.{name}")
+        agents = {name: make_teacher(teacher, env, f"pretrain_teachers.{name}", trust_pickle)
                   for name, teacher in teachers.items()}  # fmt: skip
         fallback = None
         if planner and (untaught or not scenarios):
-            fallback = make_teacher(planner, env)
+            fallback = make_teacher(planner, env, trust_pickle=trust_pickle)
         rng = np.random.default_rng(seed)
         obs_l, act_l, rew_l, done_l = [], [], [], []
         scenario_l: list[str] = []
@@ -206,8 +210,8 @@ def running_returns(rewards: np.ndarray, dones: np.ndarray, gamma: float) -> np.
 
 
 def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any],
-             settings: Pretraining, *, gamma: float,
-             log: Callable[[str], None] = print) -> dict[str, Any]:  # fmt: skip
+             settings: Pretraining, *, gamma: float, log: Callable[[str], None] = print,
+             trust_pickle: bool = False) -> dict[str, Any]:  # fmt: skip
     """Warm-start ``model`` (an SB3 ``PPO`` discounting by ``gamma``) and ``venv`` (its
     ``VecNormalize``, or any other VecEnv when observations are not normalised) from the
     demonstrations of ``settings.planner`` (and of ``settings.teachers``, by scenario:
@@ -216,7 +220,8 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any],
     policy is fitted again on all the steps so far (DAgger: the clone learns what to do in
     the states its own errors lead to, which the teachers' demonstrations seldom show).
     Returns what happened (demonstration success rate, by scenario too, the clone's success
-    in each round, steps, final losses, wall time)."""
+    in each round, steps, final losses, wall time). ``trust_pickle``: let the pickles of
+    learned teachers be unpickled (``--trust-pickle``)."""
     import torch
     from stable_baselines3.common.vec_env import VecNormalize
 
@@ -228,7 +233,8 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any],
         raise ValueError(f"dagger_episodes: must be >= 1 with DAgger rounds, got {dagger_episodes}")
     started = time.perf_counter()
     normalize = isinstance(venv, VecNormalize)
-    rounds = [collect(env_id, env_kwargs, planner, episodes, noise, teachers=teachers)]
+    rounds = [collect(env_id, env_kwargs, planner, episodes, noise, teachers=teachers,
+                      trust_pickle=trust_pickle)]  # fmt: skip
     policy = model.policy
     generator = torch.Generator().manual_seed(DEMO_SEED)
     params = [p for name, p in policy.named_parameters() if name != "log_std"]
@@ -244,7 +250,8 @@ def pretrain(model: Any, venv: Any, env_id: str, env_kwargs: Mapping[str, Any],
                 return action
 
             demos = collect(env_id, env_kwargs, planner, dagger_episodes, noise, seed=seed,
-                            teachers=teachers, driver=drive)  # fmt: skip
+                            teachers=teachers, driver=drive,
+                            trust_pickle=trust_pickle)  # fmt: skip
             seed += dagger_episodes
             rounds.append(demos)
             report.setdefault("dagger", []).append(_clone_report(demos))

@@ -13,7 +13,7 @@ last facts. The run folder:
 
 | file | what |
 | --- | --- |
-| ``model.zip``, ``vecnormalize.pkl`` | the final policy and its observation statistics |
+| ``model.zip``, ``vecnormalize.npz`` | the final policy and its observation statistics |
 | ``best/`` | the checkpoint with the best periodic evaluation |
 | ``config.yaml`` | every resolved setting: env id, preset, env kwargs, seed, hyperparameters |
 | ``command.txt`` | the command line |
@@ -22,13 +22,19 @@ last facts. The run folder:
 | ``evaluations.csv``, ``eval/`` | the periodic evaluations (``srpb-gym eval`` run folders) |
 
 Ctrl-C, or SIGTERM (what a batch scheduler or ``kill`` sends), stops training after the
-current step and still saves a usable ``model.zip`` and ``vecnormalize.pkl`` (``run.json``
+current step and still saves a usable ``model.zip`` and ``vecnormalize.npz`` (``run.json``
 says ``"interrupted": true``). Subprocess environments ignore Ctrl-C, so that only the
 training process handles it.
+
+The statistics are numbers (:mod:`srpb_gym.models.normalization`), not the pickle of
+``VecNormalize.save``. A model to start from (``--init``) is read before the run folder
+is made, its pickles never unpickled unless ``trust_pickle`` (``--trust-pickle``); a
+start that fails leaves nothing behind (a folder that was there, empty, stays, empty).
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import shutil
@@ -43,8 +49,15 @@ import gymnasium as gym
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.models.files import resolve_model
-from srpb_gym.models.loading import PolicyFileError, load_vecnormalize, model_steps
+from srpb_gym.models.loading import (
+    PolicyFileError,
+    VecNormalizeError,
+    model_steps,
+    tensors_only,
+)
+from srpb_gym.models.normalization import Normalization, load_vecnormalize
 from srpb_gym.models.record import (
+    describe_space,
     read_record,
     record_observation,
     recorded_observation,
@@ -136,6 +149,7 @@ def train(
     max_minutes: float | None = None,
     init: str | None = None,
     init_new_observation: bool = False,
+    trust_pickle: bool = False,
 ) -> TrainResult:
     """Train PPO on ``env_id`` with reward preset ``preset``; see the module docstring.
     ``max_minutes``: stop after this much wall time even if steps remain (``run.json``
@@ -145,10 +159,12 @@ def train(
     afresh, as the reward may differ (fine-tuning a ``task`` model with ``srpb``). A model
     recorded with other observation settings is refused unless ``init_new_observation``
     (the shapes must match either way: a fine-tune to the new settings; ``run.json`` keeps
-    the model's settings as ``init.observation``)."""
+    the model's settings as ``init.observation``). ``trust_pickle``: let the pickles of
+    ``init`` and of the warm start's teachers be unpickled (``--trust-pickle``)."""
     run = set_up(env_id, config, preset=preset, seed=seed, out=out, env_kwargs=env_kwargs,
                  argv=argv, log=log, device=device, init=init,
-                 init_new_observation=init_new_observation)  # fmt: skip
+                 init_new_observation=init_new_observation,
+                 trust_pickle=trust_pickle)  # fmt: skip
     try:
         try:
             learn(run, progress=progress, log=log, max_minutes=max_minutes)
@@ -173,11 +189,13 @@ def set_up(
     device: str = "cpu",
     init: str | None = None,
     init_new_observation: bool = False,
+    trust_pickle: bool = False,
 ) -> Run:
-    """Check the settings (before anything is written), write ``config.yaml``,
-    ``command.txt`` and ``run.json``, make the environments and the model, and start the
-    model from ``init`` or from the warm start of ``config`` (see :func:`train`). A start
-    that fails leaves no run folder behind."""
+    """Check the settings and read the model ``init`` (before anything is written), write
+    ``config.yaml``, ``command.txt`` and ``run.json``, make the environments and the
+    model, and start the model from ``init`` or from the warm start of ``config`` (see
+    :func:`train`). A start that fails leaves no run folder behind (a folder that was
+    there stays, empty)."""
     from stable_baselines3 import PPO
 
     env_kwargs = dict(env_kwargs or {})
@@ -194,17 +212,21 @@ def set_up(
                          key="--init")  # fmt: skip
     if init_new_observation and init is None:
         raise InputError("names no model to start from (--init)", key="--init-new-observation")
-    init_model = None if init is None else resolve_model(init, "--init")
+    init_model = None if init is None else read_init(init, trust_pickle)
     kwargs = {"reward": preset, **env_kwargs}
     if config.torch_threads > 0:
         import torch
 
         torch.set_num_threads(config.torch_threads)
-    out = check_out_dir(out or default_out(env_id, preset))
-    os.makedirs(out, exist_ok=True)
-    write_run_files(out, env_id, preset, kwargs, seed, config, argv, checked.weights)
-
-    venv = make_vec_env(env_id, config, kwargs, seed)
+    out = out or default_out(env_id, preset)
+    existed = os.path.isdir(out)
+    out = check_out_dir(out)
+    try:
+        write_run_files(out, env_id, preset, kwargs, seed, config, argv, checked.weights)
+        venv = make_vec_env(env_id, config, kwargs, seed)
+    except InputError:
+        discard_run(out, existed)
+        raise
     try:
         if config.normalize:
             venv = normalize(venv, config)
@@ -216,11 +238,11 @@ def set_up(
                   checked.bounds)  # fmt: skip
         try:
             if init_model is not None:
-                _start_from(run, *init_model, init_new_observation, log)
+                _start_from(run, init_model, init_new_observation, log)
             if pretraining is not None:
-                _warm_start(run, pretraining, log)
+                _warm_start(run, pretraining, log, trust_pickle)
         except InputError:  # nothing trained: leave no run folder behind
-            shutil.rmtree(out, ignore_errors=True)
+            discard_run(out, existed)
             raise
     except BaseException:
         venv.close()
@@ -228,15 +250,71 @@ def set_up(
     return run
 
 
-def _start_from(run: Run, path: str, vecnormalize: str | None, new_observation: bool,
+def discard_run(out: str, existed: bool) -> None:
+    """Remove what a run that failed to start wrote: the folder ``out``, or, when it
+    ``existed`` (empty) before, only what it holds now."""
+    if not existed:
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    for entry in os.scandir(out):
+        if entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(entry.path, ignore_errors=True)
+        else:
+            os.remove(entry.path)
+
+
+@dataclass(frozen=True)
+class InitModel:
+    """A trained model to start from (``--init``), read before anything is written: its
+    file, its statistics file (or ``None``) and their numbers, its observation record (a
+    mapping, or ``None``), its tensors and the steps it took."""
+
+    path: str
+    vecnormalize: str | None
+    stats: Normalization | None
+    record: Any
+    params: dict[str, Any]
+    steps: int
+
+
+def read_init(given: str, trust_pickle: bool = False) -> InitModel:
+    """Read the model that ``given`` names (:func:`resolve_model`) and its statistics:
+    tensors only (``weights_only``), a pickled statistics file only with
+    ``trust_pickle``. Every failure is an :class:`InputError` naming the file, key
+    ``--init``."""
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    path, vecnormalize = resolve_model(given, "--init")
+    try:
+        record = read_record(path)
+        steps = model_steps(path)
+        loader = contextlib.nullcontext() if trust_pickle else tensors_only()
+        with loader:
+            _, params, _ = load_from_zip_file(path, device="cpu", load_data=False)
+    except PolicyFileError as exc:
+        raise InputError(exc.reason, exc.path, key="--init") from None
+    except Exception as exc:  # a damaged zip, or tensors that are not only tensors
+        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise InputError(f"its tensors cannot be read ({why})", path, key="--init") from None
+    if not params:
+        raise InputError("holds no tensors (policy.pth)", path, key="--init")
+    stats = None
+    if vecnormalize is not None:
+        try:
+            stats = load_vecnormalize(vecnormalize, trust_pickle)
+        except VecNormalizeError as exc:
+            raise InputError(exc.reason, exc.path, key="--init") from None
+    return InitModel(path, vecnormalize, stats, record, params, steps)
+
+
+def _start_from(run: Run, init: InitModel, new_observation: bool,
                 log: Callable[[str], None]) -> None:  # fmt: skip
-    """Start the model from the trained one at ``path`` (``--init``), and say so in
+    """Start the model from the trained one read into ``init`` (``--init``), and say so in
     ``run.json``."""
-    observation = run.observation
-    init_observation = load_init(run.model, run.venv, path, vecnormalize, observation,
-                                 new_observation)  # fmt: skip
-    update_run_json(run.out, {"init": {"model": path, "vecnormalize": vecnormalize,
-                                       "steps": model_steps(path),
+    observation, path = run.observation, init.path
+    init_observation = load_init(run.model, run.venv, init, observation, new_observation)
+    update_run_json(run.out, {"init": {"model": path, "vecnormalize": init.vecnormalize,
+                                       "steps": init.steps,
                                        "observation": init_observation}})  # fmt: skip
     log(f"starting from {path}")
     if init_observation is None:
@@ -247,10 +325,11 @@ def _start_from(run: Run, path: str, vecnormalize: str | None, new_observation: 
             "model records these settings")  # fmt: skip
 
 
-def _warm_start(run: Run, settings: Pretraining, log: Callable[[str], None]) -> None:
+def _warm_start(run: Run, settings: Pretraining, log: Callable[[str], None],
+                trust_pickle: bool = False) -> None:  # fmt: skip
     """Start the model from demonstrations (:func:`pretrain`), and say so in ``run.json``."""
     report = pretrain(run.model, run.venv, run.env_id, run.env_kwargs, settings,
-                      gamma=run.config.gamma, log=log)  # fmt: skip
+                      gamma=run.config.gamma, log=log, trust_pickle=trust_pickle)  # fmt: skip
     teachers = {"teachers": dict(settings.teachers)} if settings.teachers else {}
     update_run_json(run.out, {"warm_start": {"planner": settings.planner,
                                              **teachers, **report}})  # fmt: skip
@@ -294,7 +373,7 @@ def learn(run: Run, *, progress: bool = True, log: Callable[[str], None] = print
 
 
 def save(run: Run) -> None:
-    """Save the model and its statistics (``model.zip``, ``vecnormalize.pkl``), finish
+    """Save the model and its statistics (``model.zip``, ``vecnormalize.npz``), finish
     ``run.json`` and close the logger."""
     save_checkpoint(run.model, run.out)
     finish_run_json(run.out, run.model.num_timesteps, run.wall, run.interrupted,
@@ -334,22 +413,18 @@ def make_vec_env(env_id: str, config: TrainConfig, env_kwargs: Mapping[str, Any]
     return venv
 
 
-def load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
-              observation: ObservationConfig, new_observation: bool = False,
-              ) -> dict[str, Any] | None:  # fmt: skip
-    """Load ``path``'s weights and statistics into ``model`` and ``venv``; returns the
-    model's recorded observation settings, every one (``None``: no record).
-    ``new_observation``: accept a record that differs from ``observation``."""
+def load_init(model: Any, venv: Any, init: InitModel, observation: ObservationConfig,
+              new_observation: bool = False) -> dict[str, Any] | None:  # fmt: skip
+    """Load the weights and statistics of ``init`` (:func:`read_init`) into ``model`` and
+    ``venv``; returns the model's recorded observation settings, every one (``None``: no
+    record). ``new_observation``: accept a record that differs from ``observation``."""
     from stable_baselines3.common.vec_env import VecNormalize
 
-    try:
-        record = read_record(path)
-    except PolicyFileError as exc:
-        raise InputError(exc.reason, exc.path, key="--init") from None
+    path, vecnormalize = init.path, init.vecnormalize
     recorded, why = None, None
-    if record is not None:
+    if init.record is not None:
         try:
-            recorded = recorded_observation(record)
+            recorded = recorded_observation(init.record)
         except ValueError as exc:  # an invalid record: say why
             raise InputError(f"{path}: {exc}", key="--init") from None
         why = settings_mismatch(recorded, observation)
@@ -360,26 +435,45 @@ def load_init(model: Any, venv: Any, path: str, vecnormalize: str | None,
                          "to this run's settings", key="--init")  # fmt: skip
     settings = None if recorded is None else dataclasses.asdict(recorded)
     try:
-        model.set_parameters(path, exact_match=True, device=model.device)
+        model.set_parameters(init.params, exact_match=True, device=model.device)
     except (RuntimeError, ValueError, KeyError) as exc:
         raise InputError(f"{path}: its networks do not fit this run's spaces and net_arch "
-                         f"({str(exc).splitlines()[0]})", key="--init") from None  # fmt: skip
+                         f"({state_dict_mismatch(exc)})", key="--init") from None  # fmt: skip
     if not isinstance(venv, VecNormalize):
         if vecnormalize is not None:
             raise InputError(f"{path}: trained on observations normalised by "
                              f"{vecnormalize}; this run does not normalise (normalize: false)",
                              key="--init")  # fmt: skip
         return settings
-    if vecnormalize is None:
-        raise InputError(f"{path}: no vecnormalize.pkl beside it, and this run normalises "
+    if init.stats is None:
+        raise InputError(f"{path}: no vecnormalize.npz beside it, and this run normalises "
                          "observations (normalize: true)", key="--init")  # fmt: skip
-    saved = load_vecnormalize(vecnormalize)
-    if saved.obs_rms.mean.shape != venv.obs_rms.mean.shape:
-        raise InputError(f"{vecnormalize}: statistics of {saved.obs_rms.mean.shape} "
-                         f"observations, this environment has {venv.obs_rms.mean.shape}",
-                         key="--init")  # fmt: skip
-    venv.obs_rms = saved.obs_rms.copy()
+    saved = init.stats.obs_rms
+    if isinstance(saved, dict) or isinstance(venv.obs_rms, dict):
+        same = isinstance(saved, dict) and isinstance(venv.obs_rms, dict) and all(
+            k in saved and saved[k].mean.shape == v.mean.shape for k, v in venv.obs_rms.items()
+        )  # fmt: skip
+        shapes = "another observation space"
+    else:
+        same = saved.mean.shape == venv.obs_rms.mean.shape
+        shapes = f"{saved.mean.shape} observations"
+    if not same:
+        raise InputError(f"{vecnormalize}: statistics of {shapes}, this environment has "
+                         f"{describe_space(venv.observation_space)}", key="--init")  # fmt: skip
+    venv.obs_rms = saved
     return settings
+
+
+def state_dict_mismatch(exc: BaseException, shown: int = 2) -> str:
+    """Why weights do not fit a network, in one line: torch's first ``shown`` reasons
+    (the layers and shapes that differ) after its heading, and how many more."""
+    lines = [" ".join(line.split()) for line in str(exc).splitlines()]
+    lines = [line for line in lines if line]
+    if not lines:
+        return type(exc).__name__
+    reasons = lines[1:] if len(lines) > 1 else lines
+    more = f" and {len(reasons) - shown} more" if len(reasons) > shown else ""
+    return "; ".join(reasons[:shown]) + more
 
 
 def _stop_on_sigterm() -> Any:

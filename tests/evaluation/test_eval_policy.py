@@ -32,16 +32,21 @@ def _error(capsys) -> str:
 
 @pytest.fixture(scope="module")
 def models(tmp_path_factory) -> Path:
-    """An untrained PPO and SAC model of the corridor, and VecNormalize statistics."""
+    """An untrained PPO and SAC model of the corridor, and VecNormalize statistics as
+    srpb-gym writes them (vecnormalize.npz) and as stable-baselines3 pickles them
+    (vecnormalize.pkl)."""
     import gymnasium as gym
     from stable_baselines3 import PPO, SAC
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from srpb_gym.models import save_vecnormalize
 
     folder = tmp_path_factory.mktemp("models")
     venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV)]))
     PPO("MlpPolicy", venv, n_steps=32, batch_size=32, device="cpu", seed=0).save(folder / "ppo.zip")
     SAC("MlpPolicy", venv, buffer_size=100, device="cpu", seed=0).save(folder / "sac.zip")
     venv.save(str(folder / "vecnormalize.pkl"))
+    save_vecnormalize(venv, folder / "vecnormalize.npz")
     (folder / "other").mkdir()
     PPO("MlpPolicy", "Pendulum-v1", n_steps=32, batch_size=32, device="cpu").save(
         folder / "other" / "pend.zip"
@@ -60,11 +65,19 @@ def test_rl_zoo_layout(models, tmp_path, capsys):
     shutil.copy(models / "ppo.zip", run / f"{ENV}.zip")
     shutil.copy(models / "ppo.zip", run / "best_model.zip")
     shutil.copy(models / "vecnormalize.pkl", run / ENV / "vecnormalize.pkl")
-    config = _resolve(tmp_path, run / f"{ENV}.zip", run / "best_model.zip")
+    config = _resolve(tmp_path, run / f"{ENV}.zip", run / "best_model.zip", trust_pickle=True)
     assert [s.vecnormalize for s in config.planners] == [str(run / ENV / "vecnormalize.pkl")] * 2
     out = tmp_path / "eval"
-    assert main(["eval", "--env", ENV, "--policy", str(run / "best_model.zip"),
-                 "--episodes", "1", "--out", str(out)]) == 0  # fmt: skip
+    args = ["eval", "--env", ENV, "--policy", str(run / "best_model.zip"), "--episodes", "1",
+            "--out", str(out)]  # fmt: skip
+    assert main(args) == 2  # the Zoo's statistics are a pickle: refused unless trusted
+    assert _error(capsys) == (f"{run / ENV / 'vecnormalize.pkl'}: vecnormalize: a pickle, and "
+                              "loading a pickle runs the code it names; srpb-gym reads "
+                              "normalisation statistics from vecnormalize.npz (numbers only): "
+                              "pass --trust-pickle if you trust where this file came "
+                              "from")  # fmt: skip
+    assert not out.exists() or not any(out.iterdir())
+    assert main([*args, "--trust-pickle"]) == 0
     err = capsys.readouterr().err
     assert (f"srpb-gym: note: policy best_model: PPO model (read from the file); observations "
             f"normalised with {run / ENV / 'vecnormalize.pkl'}\n") in err  # fmt: skip
@@ -77,20 +90,21 @@ def test_train_layout_and_none_found(models, tmp_path):
     run = tmp_path / "train"
     run.mkdir()
     shutil.copy(models / "ppo.zip", run / "model.zip")
-    shutil.copy(models / "vecnormalize.pkl", run / "vecnormalize.pkl")
+    shutil.copy(models / "vecnormalize.npz", run / "vecnormalize.npz")
     spec = _resolve(tmp_path, run / "model.zip").planners[0]
-    assert spec.vecnormalize == str(run / "vecnormalize.pkl")
-    (run / "vecnormalize.pkl").unlink()
+    assert spec.vecnormalize == str(run / "vecnormalize.npz")
+    (run / "vecnormalize.npz").unlink()
     lines: list[str] = []
     config = resolve_config([ENV], None, [str(run / "model.zip")], out=str(tmp_path / "o2"),
                             log=lines.append)  # fmt: skip
     assert config.planners[0].vecnormalize is None
-    assert lines == [f"note: policy model: PPO model (read from the file); no vecnormalize.pkl "
-                     f"found (looked for {run}/model_vecnormalize.pkl, {run}/vecnormalize.pkl, "
-                     f"{run}/model/vecnormalize.pkl, {run}/{ENV}/vecnormalize.pkl): raw "
-                     "observations"]  # fmt: skip
+    places = [f"{run}/model_vecnormalize", f"{run}/vecnormalize", f"{run}/model/vecnormalize",
+              f"{run}/{ENV}/vecnormalize"]  # fmt: skip
+    looked = ", ".join(f"{p}.{ext}" for p in places for ext in ("npz", "pkl"))
+    assert lines == [f"note: policy model: PPO model (read from the file); no statistics "
+                     f"found (looked for {looked}): raw observations"]  # fmt: skip
     described = config.planners[0].describe()
-    assert described["vecnormalize"] is None and len(described["vecnormalize_searched"]) == 4
+    assert described["vecnormalize"] is None and len(described["vecnormalize_searched"]) == 8
     raw = _resolve(tmp_path, models / "ppo.zip", vecnormalize="none").planners[0]
     assert raw.vecnormalize is None
 
@@ -98,7 +112,7 @@ def test_train_layout_and_none_found(models, tmp_path):
 def _run(folder: Path, models: Path) -> Path:
     folder.mkdir(parents=True)
     shutil.copy(models / "ppo.zip", folder / "model.zip")
-    shutil.copy(models / "vecnormalize.pkl", folder / "vecnormalize.pkl")
+    shutil.copy(models / "vecnormalize.npz", folder / "vecnormalize.npz")
     return folder
 
 
@@ -113,7 +127,7 @@ def test_run_folders_and_the_names_that_tell_policies_apart(models, tmp_path, ca
         str(f / "model.zip") for f in (a, a / "best", b / "best")
     ]
     assert [s.vecnormalize for s in config.planners[:3]] == [
-        str(f / "vecnormalize.pkl") for f in (a, a / "best", b / "best")
+        str(f / "vecnormalize.npz") for f in (a, a / "best", b / "best")
     ]
     # two files whose stems and folders agree up to a higher folder
     x, y = (
@@ -130,7 +144,7 @@ def test_run_folders_and_the_names_that_tell_policies_apart(models, tmp_path, ca
     assert main(["eval", "--env", ENV, "--policy", str(a), "--episodes", "1",
                  "--out", str(out)]) == 0  # fmt: skip
     assert (f"srpb-gym: note: policy a: PPO model (read from the file); observations "
-            f"normalised with {a / 'vecnormalize.pkl'}\n") in capsys.readouterr().err  # fmt: skip
+            f"normalised with {a / 'vecnormalize.npz'}\n") in capsys.readouterr().err  # fmt: skip
     assert json.loads((out / "config.json").read_text())["planners"][0]["name"] == "a"
 
 
@@ -166,24 +180,33 @@ def test_spaces_must_match(models, tmp_path, capsys):
     assert line.startswith(f"--policy: {pendulum}: trained for the observation space Box(3,) "
                            "float32 in [-8, 8], the environment has Box(")  # fmt: skip
     assert line.endswith(f"({ENV})")
-    shutil.copy(models / "vecnormalize.pkl", tmp_path / "vecnormalize.pkl")
+    shutil.copy(models / "vecnormalize.npz", tmp_path / "vecnormalize.npz")
     shutil.copy(pendulum, tmp_path / "pend.zip")
     assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "pend.zip"), "--out",
                  str(tmp_path / "x")]) == 2  # fmt: skip
-    assert _error(capsys).startswith(f"{tmp_path}/vecnormalize.pkl: vecnormalize: statistics "
+    assert _error(capsys).startswith(f"{tmp_path}/vecnormalize.npz: vecnormalize: statistics "
                                      "of the observation space Box(")  # fmt: skip
 
 
 def test_a_corrupt_vecnormalize_file_is_named(models, tmp_path, capsys):
     (tmp_path / "model.zip").write_bytes((models / "ppo.zip").read_bytes())
+    args = ["eval", "--env", ENV, "--policy", str(tmp_path / "model.zip"), "--out",
+            str(tmp_path / "x")]  # fmt: skip
+    (tmp_path / "vecnormalize.npz").write_bytes(b"garbage")
+    assert main(args) == 2
+    assert _error(capsys) == (f"{tmp_path}/vecnormalize.npz: vecnormalize: corrupt statistics "
+                              "file (not a numpy archive)")  # fmt: skip
+    np.savez(tmp_path / "vecnormalize.npz", obs_mean=np.zeros(3))
+    assert main(args) == 2
+    assert _error(capsys) == (f"{tmp_path}/vecnormalize.npz: vecnormalize: not a statistics "
+                              "file of srpb-gym (no 'format' entry)")  # fmt: skip
+    (tmp_path / "vecnormalize.npz").unlink()
     (tmp_path / "vecnormalize.pkl").write_bytes(b"\x80\x04garbage")
-    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "model.zip"),
-                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert main([*args, "--trust-pickle"]) == 2
     assert _error(capsys).startswith(f"{tmp_path}/vecnormalize.pkl: vecnormalize: corrupt "
                                      "VecNormalize file (")  # fmt: skip
     (tmp_path / "vecnormalize.pkl").write_bytes(b"\x80\x04K\x01.")  # pickled int 1
-    assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "model.zip"),
-                 "--out", str(tmp_path / "x")]) == 2  # fmt: skip
+    assert main([*args, "--trust-pickle"]) == 2
     assert _error(capsys) == (f"{tmp_path}/vecnormalize.pkl: vecnormalize: not a VecNormalize "
                               "file (holds int)")  # fmt: skip
     assert (
@@ -228,9 +251,9 @@ def test_a_model_observes_as_it_was_trained(models, tmp_path, capsys):
     folder = tmp_path / "run"
     folder.mkdir()
     model.save(folder / "model.zip")
-    shutil.copy(models / "vecnormalize.pkl", folder / "vecnormalize.pkl")
+    shutil.copy(models / "vecnormalize.npz", folder / "vecnormalize.npz")
     shutil.copy(models / "ppo.zip", tmp_path / "plain.zip")
-    shutil.copy(models / "vecnormalize.pkl", tmp_path / "vecnormalize.pkl")
+    shutil.copy(models / "vecnormalize.npz", tmp_path / "vecnormalize.npz")
     args = ["eval", "--env", ENV, "--episodes", "2", "--warmup", "0", "--policy", str(folder),
             str(tmp_path / "plain.zip")]  # fmt: skip
     kwargs = ["--env-kwargs", "observation={lidar_encoding: log}"]

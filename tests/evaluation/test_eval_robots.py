@@ -199,18 +199,20 @@ def test_shared_policy_with_two_robots(tmp_path):
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
+    from srpb_gym.models import save_vecnormalize
+
     venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV)]))
     model = PPO("MlpPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, device="cpu", seed=0)
     model.learn(64)
     model.save(tmp_path / "tiny_ppo.zip")
-    venv.save(str(tmp_path / "tiny_ppo_vecnormalize.pkl"))
+    save_vecnormalize(venv, tmp_path / "tiny_ppo_vecnormalize.npz")
     out = tmp_path / "policy"
     assert main(["eval", "--env", ENV, "--policy", str(tmp_path / "tiny_ppo.zip"), "--robots",
                  "2", "--episodes", "1", "--warmup", "5", "--out", str(out)]) == 0  # fmt: skip
     rows = _rows(out)
     assert [(r["planner"], r["robot"]) for r in rows] == [("tiny_ppo", "0"), ("tiny_ppo", "1")]
     planner = json.loads((out / "config.json").read_text())["planners"][0]
-    assert planner["vecnormalize"].endswith("tiny_ppo_vecnormalize.pkl")
+    assert planner["vecnormalize"].endswith("tiny_ppo_vecnormalize.npz")
     for row in rows:
         record = load_record(out / "episodes" / ENV / "tiny_ppo" / f"corridor_seed0_robot"
                              f"{row['robot']}.npz")  # fmt: skip
