@@ -395,6 +395,28 @@ def test_ship_refuses_bad_options(monkeypatch, capsys, argv, message):
     assert exc.value.code == 2 and message in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("name", ["", "..", ".", "x", "ppo-corridor-srpb/..",
+                                  "../ppo-corridor-srpb", "ppo-nowhere-srpb",
+                                  "ppo-corridor-bogus", "/tmp"])  # fmt: skip
+def test_ship_takes_only_a_shipped_models_name(tmp_path, monkeypatch, capsys, name):
+    """The folder of --name is replaced: only a name of the shipped form is taken, so no
+    other folder (the models folder itself, the package) is ever removed."""
+    from training import ship
+
+    models = tmp_path / "models"
+    (models / "ppo-crowd-srpb").mkdir(parents=True)
+    (models / "ppo-crowd-srpb" / "model.zip").write_text("kept")
+    monkeypatch.setattr(ship, "MODELS_DIR", models)
+    monkeypatch.setattr(ship, "evaluate", lambda *a, **k: pytest.fail("evaluated"))
+    with pytest.raises(ValueError, match="is not a shipped model's name"):
+        ship.ship(tmp_path / "run", name, 100, 10_000, False)
+    with pytest.raises(SystemExit) as exc:
+        ship.main([str(tmp_path / "run"), "--name", name, "--candidates", "1"])
+    assert exc.value.code == 2 and "is not a shipped model's name" in capsys.readouterr().err
+    assert (models / "ppo-crowd-srpb" / "model.zip").read_text() == "kept"
+    assert ship.check_name("ppo-mix-srpb") == models / "ppo-mix-srpb"
+
+
 def test_learning_curves_start_where_the_initial_model_stopped(tmp_path):
     """A fine-tuned model's curve continues from its initial model's steps, labelled by the
     name of that model (a shipped model's folder, or a run for a run's best/)."""

@@ -18,7 +18,9 @@ candidate runs were trained for the slot, ``--candidates``, and the ``srpb-gym e
 command that reproduces them). ``--workers N`` spreads the evaluations over N processes,
 as ``srpb-gym eval --workers`` (the same figures but for the computation times).
 
-The statistics are shipped as numbers (``vecnormalize.npz``); a run whose statistics are a
+``--name`` must be a shipped model's name, ``ppo-<scenario>-<preset>`` (:func:`check_name`):
+the folder of that name in ``srpb_gym/models`` is replaced, and nothing outside it. The
+statistics are shipped as numbers (``vecnormalize.npz``); a run whose statistics are a
 pickle (``vecnormalize.pkl``, from before) is converted only with ``--trust-pickle``.
 """
 
@@ -29,6 +31,7 @@ import csv
 import json
 import math
 import os
+import re
 import shutil
 import sys
 import zipfile
@@ -48,6 +51,8 @@ from srpb_gym.models import (
     stamp_observation,
 )
 from srpb_gym.observation import ObservationConfig
+from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.reward_terms import preset_names
 from srpb_gym.seeds import CHECKPOINT_SELECTION, TEST, VALIDATION, check_not_test, range_of
 from srpb_gym.training.callbacks import eval_score, summarize_results
 from srpb_gym.training.checks import reward_weights
@@ -62,6 +67,23 @@ TEST_SEED, TEST_EPISODES = TEST.start, 100
 VALIDATION_SEED = VALIDATION.start
 #: the warm-up of the test evaluation (none), which the card's command repeats
 TEST_WARMUP = 0
+#: the scenarios a shipped model's name may name: the packaged ones and the mixture
+NAME_SCENARIOS = (*SCENARIO_IDS.values(), "mix")
+
+
+def check_name(name: str) -> Path:
+    """The folder of the shipped model ``name`` in :data:`MODELS_DIR`; a ``ValueError``
+    unless ``name`` has the shipped form ``ppo-<scenario>-<preset>`` (a packaged scenario
+    or ``mix``, a reward preset), so that no other folder is ever replaced."""
+    pattern = f"ppo-({'|'.join(NAME_SCENARIOS)})-({'|'.join(preset_names())})"
+    if not isinstance(name, str) or not re.fullmatch(pattern, name):
+        raise ValueError(f"--name: {name!r} is not a shipped model's name: ppo-<scenario>-"
+                         f"<preset>, the scenario one of {', '.join(NAME_SCENARIOS)}, the "
+                         f"preset one of {', '.join(preset_names())}")  # fmt: skip
+    target = MODELS_DIR / name
+    if target.resolve().parent != MODELS_DIR.resolve():
+        raise ValueError(f"--name: {MODELS_DIR / name} lies outside {MODELS_DIR}")
+    return target
 
 
 def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Path,
@@ -364,6 +386,7 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     ``episodes`` seeds from ``seed``, computed once, here; ``candidates``: the runs
     trained for this slot, which the card states; ``trust_pickle``: a run whose statistics
     are a pickle is read and its statistics converted."""
+    target = check_name(name)
     if final and validate:
         raise ValueError("final and validate exclude each other")
     if candidates < 1:
@@ -389,7 +412,6 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
     # record that disagrees with the run's settings stops the packaging before it starts)
     observation = ObservationConfig.from_spec((env_kwargs or {}).get("observation"))
     stamp_observation(checkpoint / "model.zip", observation)
-    target = MODELS_DIR / name
     shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
     target.mkdir(parents=True)
     shutil.copyfile(checkpoint / "model.zip", target / "model.zip")
@@ -469,6 +491,10 @@ def main(argv: list[str] | None = None) -> int:
             check_not_test(args.validation_seed, args.validate, "--validation-seed")
         except InputError as exc:
             parser.error(str(exc))
+    try:
+        check_name(args.name)
+    except ValueError as exc:
+        parser.error(str(exc))
     if _range_name(args.seed, args.episodes) != TEST.name:
         print(f"note: seeds {args.seed}-{args.seed + args.episodes - 1} are not the "
               f"{TEST.text()}: the card names the range they are in",
