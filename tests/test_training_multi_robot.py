@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import json
 import math
 import subprocess
 import sys
@@ -55,11 +56,14 @@ def test_train_then_evaluate(tmp_path, capsys):
     out = tmp_path / "ppo"
     run = subprocess.run(
         [sys.executable, "-m", "training.multi_robot", "--scenario", "corridor", "--robots",
-         "2", "--envs", "2", "--steps", "2048", "--out", str(out)],
+         "2", "--envs", "2", "--steps", "64", "--out", str(out)],
         cwd=ROOT, capture_output=True, text=True, timeout=600,
     )  # fmt: skip
     assert run.returncode == 0, run.stderr
     assert {p.name for p in out.iterdir()} == {"model.zip", "vecnormalize.npz", "run.json"}
+    record = json.loads((out / "run.json").read_text())
+    # the steps the model took: whole rollouts of 4 slots x 512 steps, not the 64 asked
+    assert record["steps"] == 2048 and record["steps_asked"] == 64
     from stable_baselines3.common.save_util import load_from_zip_file
 
     from srpb_gym.models import OBSERVATION_RECORD
@@ -75,3 +79,35 @@ def test_train_then_evaluate(tmp_path, capsys):
         rows = list(csv.DictReader(f))
     assert sorted((r["seed"], r["robot"]) for r in rows) == [
         ("0", "0"), ("0", "1"), ("1", "0"), ("1", "1")]  # fmt: skip
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--steps", "-5"], "--steps: must be at least 1, got -5"),
+    (["--envs", "0"], "--envs: must be at least 1, got 0"),
+    (["--robots", "0"], "--robots: must be at least 1, got 0"),
+    (["--scenario", "crowd", "--robots", "9"],
+     "--robots: scenario 'crowd' has places for at most 8 robots, got 9"),
+    (["--reward", "bogus"], "--reward: unknown reward preset 'bogus'; choose one of: "),
+])  # fmt: skip
+def test_bad_arguments_leave_nothing_behind(tmp_path, capsys, argv, message):
+    from training import multi_robot
+
+    out = tmp_path / "run"
+    assert multi_robot.main([*argv, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert err.startswith(f"training.multi_robot: error: {message}")
+    assert not out.exists()
+
+
+def test_an_existing_run_is_never_overwritten(tmp_path, capsys):
+    from training import multi_robot
+
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "model.zip").write_text("a model trained before")
+    assert multi_robot.main(["--steps", "64", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"training.multi_robot: error: --out: {out} is not empty (holds "
+                          "model.zip); choose a new or empty folder")  # fmt: skip
+    assert (out / "model.zip").read_text() == "a model trained before"
