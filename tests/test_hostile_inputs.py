@@ -3,6 +3,8 @@ documented rule, never a traceback, a silent wrong number or a lost file."""
 
 from __future__ import annotations
 
+import csv
+import math
 import shutil
 from pathlib import Path
 
@@ -10,7 +12,11 @@ import gymnasium as gym
 import pytest
 
 from srpb_gym.cli import main
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation.stats import check_metric_value
+from srpb_gym.metrics import METRIC_NAMES, METRIC_RANGES
 
+ROOT = Path(__file__).resolve().parents[1]
 ENV = "SRPB-Corridor-v0"
 
 
@@ -19,6 +25,70 @@ def _error(capsys) -> str:
     lines = [line for line in err.strip().splitlines() if "error" in line]
     assert len(lines) == 1 and "Traceback" not in err, err
     return lines[0].removeprefix("srpb-gym: error: ")
+
+
+# ------------------------------------------------------------------ metrics
+def test_an_overflowing_metric_is_not_computable(tmp_path, capsys):
+    src = ROOT / "tests" / "fixtures" / "e01_forward_no_humans" / "srpb_log" / "log_robot.txt"
+    lines = src.read_text().splitlines()
+    fields = lines[5].split()
+    fields[1] = "1e308"  # x: finite, but the path length overflows
+    lines[5] = "    ".join(fields)
+    log = tmp_path / "log_robot.txt"
+    log.write_text("\n".join(lines) + "\n")
+    code = main(["metrics", str(log), "--no-people", "--no-groups", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0
+    assert '"m_plin": "NaN"' in out and "Infinity" not in out
+    assert ("m_plin undefined (a value of the log is too large: the computation overflows): "
+            "reported as NaN") in err  # fmt: skip
+
+
+def test_metric_ranges():
+    assert set(METRIC_RANGES) == set(METRIC_NAMES)
+    assert METRIC_RANGES["m_goal"] == (0.0, 1.0) and METRIC_RANGES["m_psi_viol"] == (0.0, 100.0)
+    assert METRIC_RANGES["m_plin"] == (0.0, math.inf)
+    check_metric_value("m_psi", 100.00000000000001, "m_psi", "f", 2)  # rounding
+    check_metric_value("m_psi", math.nan, "m_psi", "f", 2)  # not computed
+    with pytest.raises(InputError, match=r"^f:3: column gt_m_mef is -1.0, out of the range"):
+        check_metric_value("m_mef", -1.0, "gt_m_mef", "f", 3)
+
+
+# ------------------------------------------------------------------ evaluation runs
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory) -> Path:
+    """A finished evaluation run: go-to-goal, 2 episodes of the corridor."""
+    out = tmp_path_factory.mktemp("finished") / "run"
+    assert main(["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "2",
+                 "--warmup", "0", "--out", str(out)]) == 0  # fmt: skip
+    return out
+
+
+def _edited(finished: Path, tmp_path: Path, column: str, value: str) -> Path:
+    run = tmp_path / "run"
+    shutil.copytree(finished, run)
+    with open(run / "episodes.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    rows[1][rows[0].index(column)] = value
+    with open(run / "episodes.csv", "w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    return run
+
+
+@pytest.mark.parametrize(("column", "value", "why"), [
+    ("m_psi", "-5", "column m_psi is -5.0, out of the range of m_psi (from 0 to 100, %)"),
+    ("m_psi", "250", "column m_psi is 250.0, out of the range of m_psi (from 0 to 100, %)"),
+    ("gt_m_plin", "-1", "column gt_m_plin is -1.0, out of the range of m_plin (at least 0, m)"),
+    ("m_psi", "inf", "column m_psi is inf: a metric is finite or not computed (nan)"),
+])  # fmt: skip
+def test_edited_results_are_refused(finished, tmp_path, capsys, column, value, why):
+    run = _edited(finished, tmp_path, column, value)
+    capsys.readouterr()
+    assert main(["compare", str(run), "--out", str(tmp_path / "cmp")]) == 2
+    assert _error(capsys) == f"{run / 'episodes.csv'}:2: {why}"
+    assert main(["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "2", "--warmup",
+                 "0", "--out", str(run), "--resume"]) == 2  # fmt: skip
+    assert _error(capsys) == f"{run / 'episodes.csv'}:2: {why}"
 
 
 # ------------------------------------------------------------------ training starts

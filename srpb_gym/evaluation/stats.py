@@ -43,7 +43,7 @@ import numpy as np
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.intervals import bootstrap_median, finite, wilson
-from srpb_gym.metrics import METRIC_NAMES, METRIC_UNITS
+from srpb_gym.metrics import METRIC_NAMES, METRIC_RANGES, METRIC_UNITS
 from srpb_gym.metrics.io_native import read_text
 from srpb_gym.sim.contact import CAUSES, FIELDS, KINDS, STEP_PREFIX, Collision
 
@@ -237,10 +237,31 @@ def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int
     if name not in col:
         return math.nan
     try:
-        return float(row[col[name]])
+        value = float(row[col[name]])
     except ValueError:
         raise InputError(f"column {name} is {row[col[name]]!r}, expected a number", path,
                          line) from None  # fmt: skip
+    check_metric_value(name.removeprefix(GT_PREFIX), value, name, path, line)
+    return value
+
+
+def check_metric_value(metric: str, value: float, column: str, path: str, line: int) -> None:
+    """Refuse a value of ``metric`` read back from column ``column`` of ``path`` (at
+    ``line``) that the metric cannot take (:data:`~srpb_gym.metrics.METRIC_RANGES`, with
+    a relative slack of 1e-9 for rounding), or that is infinite: an :class:`InputError`
+    naming file, line and column. NaN (a metric not computed) passes."""
+    if math.isnan(value):
+        return
+    low, high = METRIC_RANGES[metric]
+    unit = METRIC_UNITS[metric]
+    if math.isinf(value):
+        raise InputError(f"column {column} is {value!r}: a metric is finite or not computed "
+                         "(nan)", path, line)  # fmt: skip
+    slack = 1e-9 * max(1.0, abs(low), abs(high) if math.isfinite(high) else 1.0)
+    if not low - slack <= value <= high + slack:
+        span = f"from {low:g} to {high:g}" if math.isfinite(high) else f"at least {low:g}"
+        raise InputError(f"column {column} is {value!r}, out of the range of {metric} "
+                         f"({span}, {unit})", path, line)  # fmt: skip
 
 
 # ---------------------------------------------------------------------------- statistics

@@ -13,6 +13,7 @@ Nothing here imports the simulation, torch or pygame.
 from srpb_gym.metrics.episode import (
     METRIC_DESCRIPTIONS,
     METRIC_NAMES,
+    METRIC_RANGES,
     METRIC_UNITS,
     EpisodeEvaluation,
     SRPBMetricWarning,
@@ -25,6 +26,7 @@ from srpb_gym.metrics.record import PERSON_FIELDS, ROBOT_FIELDS, EpisodeRecord
 __all__ = [
     "METRIC_DESCRIPTIONS",
     "METRIC_NAMES",
+    "METRIC_RANGES",
     "METRIC_UNITS",
     "PARAM_NAMES",
     "PERSON_FIELDS",

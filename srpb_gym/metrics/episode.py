@@ -50,6 +50,13 @@ METRIC_DESCRIPTIONS: dict[str, str] = {
     **{f"{m}_max": "largest per-entity value" for m in SOCIAL_METRICS},
     **{f"{m}_viol": "share of per-entity values above the threshold" for m in SOCIAL_METRICS},
 }
+METRIC_RANGES: dict[str, tuple[float, float]] = {
+    name: (0.0, 1.0) if unit == "0/1" else (0.0, 100.0) if unit == "%" else (0.0, math.inf)
+    for name, unit in METRIC_UNITS.items()
+}
+"""The values each metric can take, inclusive: ``m_goal`` 0 or 1, a share in % from 0 to
+100, the others (durations, lengths, heading changes, accelerations, computation times)
+not below 0; a metric that is computed is finite (NaN: not computed)."""
 _THRESHOLD = {
     "m_psi": "personal_space_threshold",
     "m_fsi": "group_space_threshold",
@@ -116,18 +123,33 @@ def evaluate_detailed(
             raise ValueError(f"{name} row {found[0]}: {found[1]}")
     t = record.robot_col("t")
     dt = np.diff(t)
-    metrics = motion_metrics(record, params, reference)
-    ev = social_values(record, params, reference)
-    for name, values, sample in (
-        ("m_psi", ev.psi, record.people_sample),
-        ("m_dir", ev.dir, record.people_sample),
-        ("m_fsi", ev.fsi, record.group_sample),
-    ):
-        threshold = getattr(params, _THRESHOLD[name])
-        metrics.update(aggregate_social(name, values, sample, dt, n, threshold, reference))
+    overflows: list[str] = []
+    with np.errstate(over="call", call=lambda kind, flag: overflows.append(kind)):
+        metrics = motion_metrics(record, params, reference)
+        ev = social_values(record, params, reference)
+        for name, values, sample in (
+            ("m_psi", ev.psi, record.people_sample),
+            ("m_dir", ev.dir, record.people_sample),
+            ("m_fsi", ev.fsi, record.group_sample),
+        ):
+            threshold = getattr(params, _THRESHOLD[name])
+            metrics.update(aggregate_social(name, values, sample, dt, n, threshold, reference))
+    _drop_overflows(metrics, reference, bool(overflows))
     ev.metrics = {key: metrics[key] for key in METRIC_NAMES}
     ev.params, ev.semantics = params, semantics
     return ev
+
+
+def _drop_overflows(metrics: dict[str, float], reference: bool, overflowed: bool) -> None:
+    """Report an infinite metric as not computable (NaN, with a warning) where it can only
+    come from an overflow (a value of the log too large): in the paper's semantics, whose
+    every division is guarded, any infinite metric; in ``reference`` semantics, whose
+    quirks divide by zero as the reference tool does (a time step of zero, a person at
+    the robot's centre), only when a computation overflowed (``overflowed``)."""
+    over = [k for k, v in metrics.items() if math.isinf(v)]
+    if over and (overflowed or not reference):
+        _warn_nan(", ".join(over), "a value of the log is too large: the computation overflows")
+        metrics.update(dict.fromkeys(over, math.nan))
 
 
 def _warn_nan(names: str, why: str) -> None:
