@@ -13,6 +13,7 @@ import pytest
 
 from srpb_gym.cli import main
 from srpb_gym.errors import InputError
+from srpb_gym.evaluation.figures import MAX_FRAME_SECONDS, VideoWriter
 from srpb_gym.evaluation.stats import check_metric_value
 from srpb_gym.metrics import METRIC_NAMES, METRIC_RANGES
 
@@ -64,6 +65,17 @@ def finished(tmp_path_factory) -> Path:
     return out
 
 
+def test_resuming_a_finished_run_runs_nothing(finished, tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(finished, run)
+    capsys.readouterr()
+    code = main(["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "2",
+                 "--warmup", "0", "--out", str(run), "--resume", "--workers", "2"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 0 and "Traceback" not in err, err
+    assert f"note: every episode of the run in {run} is finished: nothing to run" in err
+
+
 def _edited(finished: Path, tmp_path: Path, column: str, value: str) -> Path:
     run = tmp_path / "run"
     shutil.copytree(finished, run)
@@ -89,6 +101,20 @@ def test_edited_results_are_refused(finished, tmp_path, capsys, column, value, w
     assert main(["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "2", "--warmup",
                  "0", "--out", str(run), "--resume"]) == 2  # fmt: skip
     assert _error(capsys) == f"{run / 'episodes.csv'}:2: {why}"
+
+
+def test_a_long_video_stride_keeps_the_episode(tmp_path, capsys):
+    pytest.importorskip("PIL")
+    out = tmp_path / "run"
+    assert main(["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "1", "--warmup",
+                 "0", "--video", "1", "--video-stride", "7000", "--out",
+                 str(out)]) == 0  # fmt: skip
+    with open(out / "episodes.csv", newline="") as f:
+        (row,) = list(csv.DictReader(f))
+    assert row["planner"] == "go-to-goal"
+    assert list((out / "videos").iterdir())
+    video = VideoWriter(str(tmp_path / "v"), fps=10, stride=7000)
+    assert video.fps == 1 / MAX_FRAME_SECONDS  # a frame lasts 100 s at most
 
 
 # ------------------------------------------------------------------ training starts

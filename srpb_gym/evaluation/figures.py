@@ -237,6 +237,12 @@ def video_format() -> str | None:
     return "gif" if find_spec("PIL") is not None else None
 
 
+MAX_FRAME_SECONDS = 100.0
+"""The longest a video frame is shown: ffmpeg is given the frame rate to two decimals
+(0.01 fps at least) and a GIF frame's duration is 16 bits of hundredths of a second
+(:class:`VideoWriter` plays a longer stride faster than real time)."""
+
+
 class VideoWriter:
     """Frames (H, W, 3 uint8) added one at a time, written to ``stem`` + ``.mp4`` (streamed
     through imageio's ffmpeg plugin) or ``.gif`` (each frame kept as 8-bit palette indices,
@@ -245,7 +251,9 @@ class VideoWriter:
     ``fps``: the rate the frames are added at (the environment's ``render_fps``).
     ``stride``: keep the first frame and every ``stride``-th after it, and always the last
     one added (so the video ends where the episode ends), played at ``fps / stride``: the
-    same real time in ``1 / stride`` of the frames."""
+    same real time in ``1 / stride`` of the frames; but a frame is shown for at most
+    :data:`MAX_FRAME_SECONDS` (what both video formats can say), so a stride longer than
+    that plays faster than real time."""
 
     def __init__(self, stem: str, fps: float = 10, stride: int = 1) -> None:
         if stride < 1:
@@ -253,7 +261,7 @@ class VideoWriter:
         self.format = video_format() or "gif"
         self.path = f"{stem}.{self.format}"
         self.stride = stride
-        self.fps = fps / stride
+        self.fps = max(fps / stride, 1.0 / MAX_FRAME_SECONDS)
         self._writer: Any = None
         self._palette: Any = None
         self._images: list[Any] = []

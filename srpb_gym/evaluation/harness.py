@@ -83,6 +83,9 @@ def run_evaluation(config: EvalConfig, log: Callable[[str], None] | None = None,
         outdir.check_resumable(config, resolved, versions())
         done, tasks = outdir.finished_episodes(config, log)
         remove_unfinished(config, tasks)  # files a killed run may have left
+        if not tasks:
+            log(f"note: every episode of the run in {out} is finished: nothing to run; "
+                "its tables are made again")  # fmt: skip
         files = [os.path.join(out, name) for name in outdir.RUN_FILES]
         with open(files[1], "a", encoding="utf-8") as f:
             f.write(shlex.join(["srpb-gym", *config.argv]) + "\n")

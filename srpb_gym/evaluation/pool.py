@@ -52,6 +52,8 @@ def run_tasks(
     (each robot's, in robot order) as its episode finishes. Returns ``True`` if interrupted
     (Ctrl-C); files of unfinished episodes are then removed, so what is on disk is exactly
     the finished episodes."""
+    if not tasks:  # a resumed run that had finished
+        return False
     done: set[Task] = set()
 
     def finish(task: Task, results: list[EpisodeResult]) -> None:
