@@ -42,6 +42,9 @@ def episode_layout(
 
     An unknown option is an error, or with ``strict=False`` a warning (PettingZoo's API
     test passes options of its own)."""
+    if options is not None and not isinstance(options, Mapping):
+        raise InputError(f"expected a mapping of reset options (or None), got {options!r}",
+                         key="options")  # fmt: skip
     options = dict(options or {})
     unknown = sorted(set(options) - set(RESET_OPTIONS))
     if unknown:

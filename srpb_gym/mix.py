@@ -265,11 +265,19 @@ def _checked_weights(weights: Sequence[float] | None, count: int) -> np.ndarray:
         if (isinstance(w, (bool, np.bool_)) or not isinstance(w, numbers.Real)
                 or not math.isfinite(w) or w < 0):  # fmt: skip
             raise InputError(f"expected a finite number >= 0, got {w!r}", key=f"weights[{i}]")
-    total = math.fsum(float(w) for w in values)
+    floats = [float(w) for w in values]
+    try:
+        total = math.fsum(floats)
+    except OverflowError:  # weights near the largest float: their sum is not one
+        total = math.inf
     if total <= 0:
         raise InputError("the weights are all 0; give at least one scenario a weight > 0",
                          key="weights")  # fmt: skip
-    return np.array([float(w) / total for w in values])
+    if not math.isfinite(total):  # relative weights: scale them by the largest first
+        largest = max(floats)
+        floats = [w / largest for w in floats]
+        total = math.fsum(floats)
+    return np.array([w / total for w in floats])
 
 
 @contextmanager

@@ -9,10 +9,13 @@ import shutil
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
+import srpb_gym
 from srpb_gym.cli import main
 from srpb_gym.errors import InputError
+from srpb_gym.evaluation import resolve_config
 from srpb_gym.evaluation.figures import MAX_FRAME_SECONDS, VideoWriter
 from srpb_gym.evaluation.stats import check_metric_value
 from srpb_gym.metrics import METRIC_NAMES, METRIC_RANGES
@@ -26,6 +29,37 @@ def _error(capsys) -> str:
     lines = [line for line in err.strip().splitlines() if "error" in line]
     assert len(lines) == 1 and "Traceback" not in err, err
     return lines[0].removeprefix("srpb-gym: error: ")
+
+
+# ------------------------------------------------------------------ environments
+def test_reset_options_must_be_a_mapping():
+    env = gym.make(ENV)
+    with pytest.raises(InputError, match=r"^options: expected a mapping of reset options"):
+        env.reset(options=[1, 2])
+    env.reset(seed=0)  # the environment stays usable
+    par = srpb_gym.parallel_env(scenario="corridor", n_robots=2)
+    with pytest.raises(InputError, match=r"^options: expected a mapping"):
+        par.reset(options=[1, 2])
+
+
+def test_numpy_integers_count_robots(tmp_path):
+    par = srpb_gym.parallel_env(scenario="corridor", n_robots=np.int64(2))
+    assert par.n_robots == 2 and type(par.n_robots) is int
+    config = resolve_config([ENV], ["go-to-goal"], robots=np.int64(2), out=str(tmp_path / "o"),
+                            log=None)  # fmt: skip
+    assert config.robots == 2 and type(config.robots) is int
+    with pytest.raises(InputError, match=r"^--robots: expected a whole number, got 2.0"):
+        resolve_config([ENV], ["go-to-goal"], robots=2.0, out=str(tmp_path / "p"), log=None)
+
+
+def test_mixture_weights_near_the_largest_float_are_normalised():
+    env = gym.make("SRPB-Mix-v0", weights=[1e308, 1e308, 1, 1, 1])
+    weights = env.unwrapped.weights
+    assert weights[:2] == (0.5, 0.5) and all(0 <= w < 1e-300 for w in weights[2:])
+    env.reset(seed=0)
+    # ordinary weights keep their exact probabilities
+    assert gym.make("SRPB-Mix-v0", weights=[1, 1, 1, 2, 3]).unwrapped.weights == (
+        0.125, 0.125, 0.125, 0.25, 0.375)  # fmt: skip
 
 
 # ------------------------------------------------------------------ metrics

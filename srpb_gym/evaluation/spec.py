@@ -14,11 +14,14 @@ names and ``episodes.csv``.
 
 from __future__ import annotations
 
+import numbers
 import os
 import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 from srpb_gym.errors import InputError, env_kwargs_error
 from srpb_gym.evaluation.data import DEFAULT_EPISODES, DEFAULT_WARMUP, EvalConfig, PlannerSpec
@@ -114,6 +117,7 @@ def resolve_config(
         raise InputError(f"choose one of: {', '.join(PRESETS)}", key="--preset")
     env_ids, files = resolve_envs(envs or DEFAULT_ENVS)
     _check_robots(robots, env_ids, dict(files))
+    robots = int(robots)  # a numpy integer too
     probe = EvalConfig(tuple(env_ids), (), scenario_files=tuple(files), robots=robots,
                        make_kwargs=_check_env_kwargs(env_kwargs))  # fmt: skip
     if probe.make_kwargs:
@@ -203,7 +207,9 @@ def resolve_envs(items: Sequence[str]) -> tuple[list[str], list[tuple[str, str]]
 
 def _check_robots(robots: int, env_ids: Sequence[str], files: Mapping[str, str]) -> None:
     """Refuse ``robots`` below 1 or above what a scenario places (naming its limit)."""
-    if isinstance(robots, bool) or not isinstance(robots, int) or robots < 1:
+    if isinstance(robots, (bool, np.bool_)) or not isinstance(robots, numbers.Integral):
+        raise InputError(f"expected a whole number, got {robots!r}", key="--robots")
+    if robots < 1:
         raise InputError(f"must be at least 1, got {robots}", key="--robots")
     for env in env_ids:
         if env == MIX_ID:
