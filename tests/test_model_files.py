@@ -211,3 +211,30 @@ def test_another_models_statistics_are_never_taken(trained, tmp_path, capsys):
     # the RL Zoo's layout still counts: <run>/<env_id>/ beside <run>/best_model.zip
     (zoo / "other").rename(zoo / ENV)
     assert find_vecnormalize(zoo / "policyA.zip", [ENV]) == str(zoo / ENV / "vecnormalize.npz")
+
+
+def test_without_stable_baselines3_loading_names_the_extra():
+    """Without the train extra a model is not decoded at all: the error names the extra,
+    not a pickled class that could not be found."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] in ('torch', 'stable_baselines3'):\n"
+        "            raise ImportError(name)\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "from srpb_gym.models import load_model, model_path\n"
+        "try:\n"
+        "    load_model(model_path('ppo-corridor-srpb'))\n"
+        "except ImportError as exc:\n"
+        "    print(exc)\n"
+    )
+    root = Path(__file__).resolve().parents[1]
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, capture_output=True,
+                         text=True, timeout=120)  # fmt: skip
+    assert out.stdout.strip() == (
+        'learned policies need stable-baselines3 and torch: pip install "srpb-gym[train]"'
+    ), out.stderr

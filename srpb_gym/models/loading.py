@@ -193,6 +193,7 @@ def load_model(path: str | os.PathLike[str], algo: str | None = None,
     """
     path = os.fspath(path)
     detected = detect_algorithm(path)
+    import_sb3()  # the install hint first: without it nothing decodes
     custom = None
     if not trust_pickle:
         try:
