@@ -233,6 +233,11 @@ def _collision(
     return Collision(kind, by, *speeds)
 
 
+#: the columns of the collision attribution that hold speeds (>= 0; the closing speeds
+#: may be negative)
+SPEED_COLUMNS = ("collision_robot_speed", "collision_other_speed")
+
+
 def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int) -> float:
     if name not in col:
         return math.nan
@@ -241,7 +246,14 @@ def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int
     except ValueError:
         raise InputError(f"column {name} is {row[col[name]]!r}, expected a number", path,
                          line) from None  # fmt: skip
-    check_metric_value(name.removeprefix(GT_PREFIX), value, name, path, line)
+    metric = name.removeprefix(GT_PREFIX)
+    if metric in METRIC_RANGES:
+        check_metric_value(metric, value, name, path, line)
+    elif math.isinf(value):  # a speed of the collision attribution
+        raise InputError(f"column {name} is {value!r}, expected a finite number or nan", path,
+                         line)  # fmt: skip
+    elif name in SPEED_COLUMNS and value < 0.0:
+        raise InputError(f"column {name} is {value!r}, a speed is >= 0", path, line)
     return value
 
 
