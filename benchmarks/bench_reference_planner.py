@@ -146,8 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     where = seeds.name if seeds is not None else "no named range"
     print(f"{args.planner}: {args.episodes} episodes per scenario, seeds {args.seed}-"
           f"{args.seed + args.episodes - 1} ({where}), {config.workers} worker(s); target "
-          f"success >= {TARGET_SUCCESS:g} %, contacts caused <= {TARGET_COLLISIONS:g} % "
-          "(every contact counts as caused)", flush=True)  # fmt: skip
+          f"success >= {TARGET_SUCCESS:g} %, collisions caused by the robot <= "
+          f"{TARGET_COLLISIONS:g} %", flush=True)  # fmt: skip
     outcome = run_evaluation(config)
     if outcome.interrupted:
         print(f"interrupted: {outcome.finished} of {outcome.planned} episodes; --out {out}")
