@@ -25,7 +25,7 @@ from srpb_gym.planners.dwa import DWA, DWAConfig
 from srpb_gym.planners.global_planner import GlobalPlanner, GlobalPlannerConfig
 from srpb_gym.planners.go_to_goal import GoToGoal, GoToGoalConfig
 from srpb_gym.planners.recovery import RecoveryConfig
-from srpb_gym.planners.reference import OracleSocialDWA, OracleSocialDWAConfig
+from srpb_gym.planners.reference import OracleDWA, OracleSocialDWA, OracleSocialDWAConfig
 from srpb_gym.planners.social_dwa import SocialDWA, SocialDWAConfig
 from srpb_gym.planners.social_force import SocialForcePlanner, SocialForcePlannerConfig
 
@@ -36,7 +36,10 @@ PLANNERS: dict[str, type[Planner]] = {
     SocialForcePlanner.name: SocialForcePlanner,
 }
 """The baselines: they see what the robot knows; an evaluation runs them all by default."""
-REFERENCE_PLANNERS: dict[str, type[Planner]] = {OracleSocialDWA.name: OracleSocialDWA}
+REFERENCE_PLANNERS: dict[str, type[Planner]] = {
+    OracleDWA.name: OracleDWA,
+    OracleSocialDWA.name: OracleSocialDWA,
+}
 """Reference planners, handed the true people (``ground_truth``): no baselines, run only
 when named."""
 
@@ -102,7 +105,7 @@ def make_planner(name: str, config: Any = None, path: str | None = None) -> Plan
 
 __all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "REFERENCE_PLANNERS", "DWAConfig",
            "GlobalPlanner", "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge",
-           "OracleSocialDWA", "OracleSocialDWAConfig", "Planner", "RecoveryConfig",
+           "OracleDWA", "OracleSocialDWA", "OracleSocialDWAConfig", "Planner", "RecoveryConfig",
            "SocialDWA", "SocialDWAConfig", "SocialForcePlanner", "SocialForcePlannerConfig",
            "check_settings", "command_to_action", "heading_error", "knowledge_for",
            "make_planner", "planner_class", "planner_config", "unknown_planner"]  # fmt: skip

@@ -1,6 +1,7 @@
 """Reference planners: good drivers handed the true people, to show what each scenario allows.
 
-:class:`OracleSocialDWA` is the :class:`~srpb_gym.planners.social_dwa.SocialDWA` handed the
+:class:`OracleDWA` is the :class:`~srpb_gym.planners.dwa.DWA` (its settings and defaults)
+and :class:`OracleSocialDWA` the :class:`~srpb_gym.planners.social_dwa.SocialDWA` handed the
 people as they are (:func:`srpb_gym.knowledge.true_people`: exact positions, velocities and
 headings, their true ids, zero covariance) in ``knowledge.tracks`` instead of the
 tracker's. Everything else is what every planner gets: the robot and its limits, the static
@@ -21,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from srpb_gym.knowledge import Knowledge
+from srpb_gym.planners.dwa import DWA
 from srpb_gym.planners.global_planner import GlobalPlannerConfig
 from srpb_gym.planners.social_dwa import SocialDWA, SocialDWAConfig
 
@@ -80,3 +82,11 @@ class OracleSocialDWA(SocialDWA):
             gap = np.minimum(radii + cfg.standing_margin, now - 0.05)
             people[still, 4] = np.maximum(radii + 0.01, gap)
         return people
+
+
+class OracleDWA(DWA):
+    """:class:`~srpb_gym.planners.dwa.DWA`, with its own settings and defaults, handed the
+    true people (``ground_truth``); see the module docstring."""
+
+    name = "oracle-dwa"
+    ground_truth: ClassVar[bool] = True

@@ -83,7 +83,9 @@ def test_true_people_of_an_empty_scene():
 
 def test_knowledge_for_hands_the_truth_to_reference_planners_only(crowd):
     xy, _, _ = _truth(crowd.sim)
-    assert np.array_equal(knowledge_for(OracleSocialDWA(), crowd.knowledge).tracks.xy, xy)
+    for name in REFERENCE_PLANNERS:
+        tracks = knowledge_for(make_planner(name), crowd.knowledge).tracks
+        assert np.array_equal(tracks.xy, xy), name
     for name in PLANNERS:
         tracks = knowledge_for(make_planner(name), crowd.knowledge).tracks
         assert np.array_equal(tracks.ids, crowd.sim.robots[0].tracker.tracks().ids), name
@@ -208,3 +210,11 @@ def test_standing_people_keep_the_smaller_margin():
     radii = planner.planner.robot_radius + planner.config.person_radius
     assert np.allclose(people[:, 4], radii + np.array([0.1, 0.4]))
     env.close()
+
+
+def test_oracle_dwa_is_dwa_with_its_settings_and_the_true_people():
+    from srpb_gym.planners import DWA, DWAConfig
+
+    planner = make_planner("oracle-dwa", {"horizon": 2.0})
+    assert isinstance(planner, DWA) and planner.ground_truth and "oracle-dwa" not in PLANNERS
+    assert planner.config == DWAConfig(horizon=2.0)
