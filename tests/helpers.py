@@ -16,3 +16,18 @@ def same(a, b) -> bool:
     if isinstance(a, np.ndarray):
         return a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
     return type(a) is type(b) and a == b
+
+
+CLI_ERROR = "srpb-gym: error: "
+
+
+def error_line(capsys, strict: bool = False) -> str:
+    """The one line of a command's stderr that says ``error`` (other lines, such as notes,
+    may surround it), without a traceback, less the ``srpb-gym: error: `` prefix; with
+    ``strict`` the line must carry that prefix."""
+    err = capsys.readouterr().err
+    lines = [line for line in err.strip().splitlines() if "error" in line]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    if strict:
+        assert lines[0].startswith(CLI_ERROR), lines[0]
+    return lines[0].removeprefix(CLI_ERROR)

@@ -19,16 +19,14 @@ from srpb_gym.evaluation import resolve_config
 from srpb_gym.evaluation.figures import MAX_FRAME_SECONDS, VideoWriter
 from srpb_gym.evaluation.stats import check_metric_value
 from srpb_gym.metrics import METRIC_NAMES, METRIC_RANGES
+from tests.helpers import error_line
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = "SRPB-Corridor-v0"
 
 
 def _error(capsys) -> str:
-    err = capsys.readouterr().err
-    lines = [line for line in err.strip().splitlines() if "error" in line]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0].removeprefix("srpb-gym: error: ")
+    return error_line(capsys)
 
 
 # ------------------------------------------------------------------ environments

@@ -30,6 +30,7 @@ from srpb_gym.models import (
     save_vecnormalize,
     stray_vecnormalize,
 )
+from tests.helpers import error_line
 
 pytest.importorskip("stable_baselines3")
 
@@ -48,10 +49,7 @@ class Payload:
 
 
 def _error(capsys) -> str:
-    err = capsys.readouterr().err
-    lines = [line for line in err.strip().splitlines() if "error" in line]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    return lines[0].removeprefix("srpb-gym: error: ")
+    return error_line(capsys)
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ import pytest
 
 from srpb_gym.cli import main
 from srpb_gym.evaluation import resolve_config
+from tests.helpers import error_line
 
 pytest.importorskip("stable_baselines3")
 
@@ -23,11 +24,7 @@ ENV = "SRPB-Corridor-v0"
 
 
 def _error(capsys) -> str:
-    err = capsys.readouterr().err
-    lines = [line for line in err.strip().splitlines() if "error" in line]
-    assert len(lines) == 1 and "Traceback" not in err, err
-    assert lines[0].startswith("srpb-gym: error: ")
-    return lines[0][len("srpb-gym: error: ") :]
+    return error_line(capsys, strict=True)
 
 
 @pytest.fixture(scope="module")
