@@ -70,15 +70,16 @@ class SocialForceConfig:
     Robots (people see them coming): besides the social force above, a walker anticipates
     a collision with a robot through the time-to-collision power law of Karamouzas, Skinner
     and Guy 2014 (Phys. Rev. Lett. 113, 238701): the energy ``k tau^-2 exp(-tau / tau0)``,
-    ``tau`` the time until the bodies (radii plus ``robot_ttc_margin``) touch at their
-    current velocities, gives the force ``-grad`` of it (``robot_ttc_strength`` k,
-    ``robot_ttc_horizon`` tau0, capped at ``robot_ttc_max``), which brakes and steers
-    sideways long before contact and grows without bound as contact nears; its braking part
-    is turned sideways by ``evasion`` like the social force's. A walker therefore slows,
-    steps aside or waits for a robot that drives at it, parks on its line or stands by a
-    door. Measured in the packaged scenarios: a robot parked where it starts is touched in
-    none of 100 episodes in each (``benchmarks/people.py``); without this term 13 of 30
-    corridor episodes ended with a person walking into it.
+    ``tau`` the time until the bodies (radii plus ``robot_ttc_margin``) touch if the
+    walker walks as it means to (its preferred speed towards its waypoint; a standing
+    person at rest) and the robot keeps its velocity, gives the force ``-grad`` of it
+    (``robot_ttc_strength`` k, ``robot_ttc_horizon`` tau0, capped at ``robot_ttc_max``),
+    which brakes and steers sideways long before contact and grows without bound as contact
+    nears; its braking part is turned sideways by ``evasion`` like the social force's. A
+    walker therefore slows, steps aside or waits for a robot that drives at it, parks on
+    its line or stands by a door. Measured in the packaged scenarios: a robot parked where
+    it starts is touched in none of 100 episodes in each (``benchmarks/people.py``);
+    without this term 13 of 30 corridor episodes ended with a person walking into it.
 
     Doors (the layout's ``doors``: openings narrower than one body can share, found from
     the walls): walkers take turns. A walker whose next waypoint, or the one after, lies

@@ -66,6 +66,14 @@ def _evade(fx: float, fy: float, sx: float, sy: float, ex: float, ey: float,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _side(dx: float, dy: float, ex: float, ey: float) -> tuple[float, float]:
+    """The unit direction, across heading e, away from an obstacle that lies at -(dx, dy)
+    from the body: the side the body is on (its right when dead ahead)."""
+    side = 1.0 if dx * ey - dy * ex >= 0.0 else -1.0
+    return side * ey, -side * ex
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _social(dx: float, dy: float, dvx: float, dvy: float, rsum: float, A: float, B: float,
             T: float, ex: float, ey: float, lam: float, evasion: float,
             tie: float) -> tuple[float, float]:  # fmt: skip
@@ -89,8 +97,8 @@ def _social(dx: float, dy: float, dvx: float, dvy: float, rsum: float, A: float,
         nx, ny = tie, 0.0
     cos_phi = -(ex * dx + ey * dy) / d if d > 1e-9 else 1.0
     mag = A * math.exp((rsum - dp) / B) * (lam + (1.0 - lam) * 0.5 * (1.0 + cos_phi))
-    side = 1.0 if nx * ey - ny * ex >= 0.0 else -1.0  # pass it on the side we are on
-    return _evade(mag * nx, mag * ny, side * ey, -side * ex, ex, ey, evasion)
+    sx, sy = _side(nx, ny, ex, ey)  # pass it on the side we are on
+    return _evade(mag * nx, mag * ny, sx, sy, ex, ey, evasion)
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -186,14 +194,6 @@ def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm, ux,
             gx, gy = _evade(gx, gy, sx, sy, ex, ey, evasion)
             fx, fy = fx + gx, fy + gy
     return fx, fy
-
-
-@njit(cache=True, inline="always", error_model="numpy")
-def _side(dx: float, dy: float, ex: float, ey: float) -> tuple[float, float]:
-    """The unit direction, across heading e, away from an obstacle at offset -(dx, dy): the
-    side the body is on (its right when dead ahead)."""
-    side = 1.0 if dx * ey - dy * ex >= 0.0 else -1.0
-    return side * ey, -side * ex
 
 
 @njit(cache=True, inline="always", error_model="numpy")
