@@ -124,6 +124,10 @@ class SRPBNavEnv(gym.Env):
     | fsi | -0.6 | 0 | per second of full O-space intrusion |
     | dir | -0.2 | 0 | per second of heading straight into a person |
 
+    The social terms (``psi``, ``fsi``, ``dir``) see the people the tracker reports, as
+    the robot does (``reward_people="tracked"``, default); ``reward_people="ground_truth"``
+    computes every term from the true people instead (a privileged reward, as the
+    ``srpb_gt/`` metrics are; the observation stays the tracker's).
     ``info["reward_<term>"]`` holds each weighted term (they sum to the reward) and
     ``info["srpb_step/<term>"]`` the unweighted SRPB terms. The presets cannot be gamed by
     crashing: for a learner discounting by 0.99 per step, every shaping term at its worst
@@ -174,7 +178,8 @@ class SRPBNavEnv(gym.Env):
     ``scenario``: a packaged name (corridor, fformation, crossing, crowd, doorway) or a path
     to a YAML file. ``render_mode``: "human" or "rgb_array". ``observation``: type name or
     mapping of :class:`~srpb_gym.observation.ObservationConfig`. ``reward``: preset name.
-    ``reward_weights``: weights by term. ``collision``: "terminate" or "continue".
+    ``reward_weights``: weights by term. ``reward_people``: "tracked" or "ground_truth",
+    the people the reward sees. ``collision``: "terminate" or "continue".
     ``metrics``: ``{"semantics": "paper"|"reference", "preset": "paper"|"srpb-code",
     "params": {...}}``; the robot's circumradius and largest speed and the scenario's goal
     tolerance replace the preset's values, and ``params`` replaces any value.
@@ -218,7 +223,8 @@ class SRPBNavEnv(gym.Env):
       (``reward_weights={obs: -1, psi: -5, fsi: -3, dir: -1, collision: -110}`` gives the
       former weights; metrics, dynamics and observations are unchanged). The info
       gained the attribution of collisions (``collision_kind``, ``collision_by``, ...,
-      ``collision_count``); everything else is as it was.
+      ``collision_count``); everything else is as it was. ``reward_people`` was added;
+      its default ``"tracked"`` is the reward as before.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

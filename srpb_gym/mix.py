@@ -113,8 +113,8 @@ class SRPBMixEnv(SRPBNavEnv):
     fformation, crossing, crowd, doorway); each scenario at most once (by name).
     ``weights``: one number >= 0 per scenario, not all 0, relative (default: equal).
     The other arguments are those of :class:`~srpb_gym.env.SRPBNavEnv` (``render_mode``,
-    and the settings ``observation``, ``reward``, ``reward_weights``, ``collision``,
-    ``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``, or
+    and the settings ``observation``, ``reward``, ``reward_weights``, ``reward_people``,
+    ``collision``, ``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``, or
     ``settings``: one :class:`~srpb_gym.settings.EnvSettings`), applied to every scenario;
     ``sensors`` replaces the sensors of every scenario. Recorded episodes are named after
     the episode's scenario (``crowd_seed3`` for ``reset(seed=3)`` drawing crowd), so the

@@ -72,11 +72,12 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
 
     ## Arguments
     ``scenario``, ``render_mode`` and the settings ``observation``, ``reward``,
-    ``reward_weights``, ``collision``, ``metrics``, ``record_dir``, ``sim``, ``robot``,
-    ``sensors``, ``crowd`` (or ``settings``: one :class:`~srpb_gym.settings.EnvSettings`):
-    as :class:`srpb_gym.env.SRPBNavEnv` (the episode files of robot r end in ``_robot<r>``
-    when there are several). ``n_robots``: how many robots; more than the scenario has
-    places for is an error that names its limit. ``max_steps``: an optional step limit.
+    ``reward_weights``, ``reward_people``, ``collision``, ``metrics``, ``record_dir``,
+    ``sim``, ``robot``, ``sensors``, ``crowd`` (or ``settings``: one
+    :class:`~srpb_gym.settings.EnvSettings`): as :class:`srpb_gym.env.SRPBNavEnv` (the
+    episode files of robot r end in ``_robot<r>`` when there are several). ``n_robots``:
+    how many robots; more than the scenario has places for is an error that names its
+    limit. ``max_steps``: an optional step limit.
     ``reset(options=...)`` takes ``people`` (False: an empty variant) and, with one robot,
     ``start`` and ``goal``; other keys are ignored with a warning (PettingZoo's API test
     passes options of its own).

@@ -1,8 +1,8 @@
 """Everything an environment is built from, validated once: :class:`EnvSettings`.
 
 The Gymnasium environment, the scenario mixture and the PettingZoo environment take the
-same ten settings (``observation``, ``reward``, ``reward_weights``, ``collision``,
-``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``; see
+same eleven settings (``observation``, ``reward``, ``reward_weights``, ``reward_people``,
+``collision``, ``metrics``, ``record_dir``, ``sim``, ``robot``, ``sensors``, ``crowd``; see
 :class:`srpb_gym.env.SRPBNavEnv` for what each means). They pass them here as plain data
 and keep only their own arguments; the settings load a scenario for the robot, build its
 simulation and one :class:`~srpb_gym.task.RobotTask` per robot::
@@ -39,7 +39,7 @@ from srpb_gym.scenarios import Scenario, load_scenario
 from srpb_gym.sim.crowd import SocialForceConfig
 from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.simulation import SimConfig, Simulation
-from srpb_gym.task import COLLISION_MODES, MetricSettings, RobotTask, build_task
+from srpb_gym.task import COLLISION_MODES, REWARD_PEOPLE, MetricSettings, RobotTask, build_task
 
 __all__ = ["SENSORS", "SETTING_NAMES", "EnvSettings", "Frozen"]
 
@@ -76,13 +76,15 @@ class EnvSettings:
     ``observation``, ``sim``, ``robot`` and ``crowd`` are the resolved configs; ``sensors``
     holds the configs that replace the scenario's (``None``: the scenario's own);
     ``reward`` is a preset name and ``reward_weights`` the weights that override it by
-    term; ``metrics`` the ``metrics`` mapping as given (checked); ``record_dir`` where
-    finished episodes are written (created when a task is built).
+    term, its terms computed from the people ``reward_people`` names; ``metrics`` the
+    ``metrics`` mapping as given (checked); ``record_dir`` where finished episodes are
+    written (created when a task is built).
     """
 
     observation: ObservationConfig = dataclasses.field(default_factory=ObservationConfig)
     reward: str = "srpb"
     reward_weights: Mapping[str, float] = dataclasses.field(default_factory=lambda: Frozen({}))
+    reward_people: str = "tracked"
     collision: str = "terminate"
     metrics: Mapping[str, Any] = dataclasses.field(default_factory=lambda: Frozen({}))
     record_dir: str | None = None
@@ -112,6 +114,7 @@ class EnvSettings:
             observation=ObservationConfig.from_spec(kwargs.get("observation")),
             reward=kwargs.get("reward", "srpb"),
             reward_weights=kwargs.get("reward_weights") or {},
+            reward_people=kwargs.get("reward_people", "tracked"),
             collision=kwargs.get("collision", "terminate"),
             metrics=kwargs.get("metrics") or {},
             record_dir=record_dir,
@@ -135,6 +138,9 @@ class EnvSettings:
         if self.collision not in COLLISION_MODES:
             raise InputError(f"expected one of {COLLISION_MODES}, got {self.collision!r}",
                              key="collision")  # fmt: skip
+        if self.reward_people not in REWARD_PEOPLE:
+            raise InputError(f"expected one of {REWARD_PEOPLE}, got {self.reward_people!r}",
+                             key="reward_people")  # fmt: skip
         load_preset(self.reward)  # an unknown preset: an error naming the key
         object.__setattr__(self, "reward_weights", Frozen(check_weights(self.reward_weights)))
         # checked now with the default goal tolerance; each task resolves its own
@@ -183,7 +189,7 @@ class EnvSettings:
         tolerance = scenario.robot_specs(n_robots)[robot].goal_tolerance
         return build_task(
             sim, robot, tolerance, self.observation, self.reward, self.reward_weights,
-            self.collision, self.metrics, self.record_dir, scenario.reward,
+            self.collision, self.metrics, self.record_dir, scenario.reward, self.reward_people,
         )  # fmt: skip
 
     def build(self, scenario: Scenario, n_robots: int = 1) -> tuple[Simulation, list[RobotTask]]:
@@ -196,8 +202,8 @@ class EnvSettings:
 
 #: the keyword arguments that make :class:`EnvSettings`, as the environments take them
 SETTING_NAMES: tuple[str, ...] = (
-    "observation", "reward", "reward_weights", "collision", "metrics", "record_dir", "sim",
-    "robot", "sensors", "crowd",
+    "observation", "reward", "reward_weights", "reward_people", "collision", "metrics",
+    "record_dir", "sim", "robot", "sensors", "crowd",
 )  # fmt: skip
 
 

@@ -47,6 +47,10 @@ from srpb_gym.sim.robot import RobotConfig
 from srpb_gym.simulation import Simulation
 
 COLLISION_MODES = ("terminate", "continue")
+#: whose people the reward's social terms (psi, fsi, dir) see: the tracker's, as the
+#: robot does, or the simulation's true people (a privileged reward; the observation stays
+#: the tracker's)
+REWARD_PEOPLE = ("tracked", "ground_truth")
 METRIC_KEYS = ("semantics", "preset", "params")
 
 
@@ -105,7 +109,10 @@ class RobotTask:
     :data:`srpb_gym.reward.TERMS`; ``metrics``: how episodes are scored (the reward's SRPB
     terms use the same parameters); ``collision``: ``"terminate"`` ends the episode at a
     contact, ``"continue"`` penalises it and goes on; ``record_dir``: write every finished
-    episode there as SRPB native logs and ``.npz`` records.
+    episode there as SRPB native logs and ``.npz`` records; ``reward_people``: the people
+    the reward's terms are computed from (:data:`REWARD_PEOPLE`): ``"tracked"`` (the
+    episode's record, as the metrics in ``srpb/``) or ``"ground_truth"`` (its ground-truth
+    record, as ``srpb_gt/``).
     """
 
     def __init__(
@@ -117,10 +124,15 @@ class RobotTask:
         metrics: MetricSettings,
         collision: str = "terminate",
         record_dir: str | None = None,
+        reward_people: str = "tracked",
     ) -> None:
         if collision not in COLLISION_MODES:
             raise InputError(f"expected one of {COLLISION_MODES}, got {collision!r}",
                              key="collision")  # fmt: skip
+        if reward_people not in REWARD_PEOPLE:
+            raise InputError(f"expected one of {REWARD_PEOPLE}, got {reward_people!r}",
+                             key="reward_people")  # fmt: skip
+        self.reward_people = reward_people
         self.sim, self.robot = sim, robot
         self.collision_mode = collision
         self.metrics = metrics
@@ -154,7 +166,7 @@ class RobotTask:
         if self.collision_mode == "terminate":
             self.reward_fn.check_bound(self.sim.layout.time_limit, self.sim.config.control_dt,
                                        self.sim.robot_config)  # fmt: skip
-        self.reward_fn.reset(self.record, distance)
+        self.reward_fn.reset(self.reward_record, distance)
         info = self._info(False, False, distance)
         info["reward_weights"] = dict(zip(TERMS, self.reward_fn.weights.tolist()))
         return self.observation(), info
@@ -195,7 +207,7 @@ class RobotTask:
         reached = self.goal_reached()
         terminated = reached or (collided and self.collision_mode == "terminate")
         success = reached and not self.collided
-        reward = self.reward_fn.step(self.record, distance, success, collided)
+        reward = self.reward_fn.step(self.reward_record, distance, success, collided)
         info = self._info(success, collided, distance)
         if collision is not None:
             info.update(collision.info(STEP_PREFIX))
@@ -225,6 +237,13 @@ class RobotTask:
     def record(self) -> EpisodeRecord:
         """The episode's SRPB record from the tracked people."""
         return self.sim.robots[self.robot].record
+
+    @property
+    def reward_record(self) -> EpisodeRecord:
+        """The record the reward is computed from: the tracked one, or the ground-truth one
+        with ``reward_people="ground_truth"`` (the robot's samples are the same in both)."""
+        state = self.sim.robots[self.robot]
+        return state.gt_record if self.reward_people == "ground_truth" else state.record
 
     def goal_reached(self) -> bool:
         """Whether the robot is at its goal: the SRPB goal rule (``m_goal``)."""
@@ -308,13 +327,14 @@ def build_task(
     metrics: Mapping[str, Any] | None = None,
     record_dir: str | None = None,
     scenario_reward: Mapping[str, Mapping[str, float]] | None = None,
+    reward_people: str = "tracked",
 ) -> RobotTask:
     """A task from the plain-data arguments of an environment (see :class:`RobotTask`);
     ``scenario_reward``: the scenario's weights by preset (its ``reward`` section)."""
     settings = MetricSettings.build(metrics, sim.robot_config, goal_tolerance)
     weights = resolve_weights(reward, reward_weights, scenario_reward)
     return RobotTask(sim, robot, ObservationConfig.from_spec(observation), weights, settings,
-                     collision, record_dir)  # fmt: skip
+                     collision, record_dir, reward_people)  # fmt: skip
 
 
 def _checked_record_dir(path: str | os.PathLike[str] | None) -> str | None:

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 import srpb_gym  # noqa: F401 - registers the environments
+from srpb_gym.errors import InputError
 from srpb_gym.metrics import METRIC_NAMES, evaluate, evaluate_detailed
 from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.metrics.record import R
@@ -176,6 +177,61 @@ def test_every_reward_term_by_hand():
     # the last metres (test_approach_term_by_hand)
     assert seen >= set(TERMS) - {"success", "collision", "fsi", "approach"}, set(TERMS) - seen
     assert set(TASK_TERMS) < set(TERMS)
+
+
+def social_steps(record, params) -> dict[str, np.ndarray]:
+    """dt x the largest psi, fsi and dir of each sample of ``record`` but the last: the
+    social terms of the step that starts at that sample."""
+    ev = evaluate_detailed(record, "paper", params)
+    t = record.robot[:, R["t"]]
+    out = {}
+    for term, values, owner in (("psi", ev.psi, record.people_sample),
+                                ("dir", ev.dir, record.people_sample),
+                                ("fsi", ev.fsi, record.group_sample)):  # fmt: skip
+        out[term] = np.array([(t[k + 1] - t[k]) * max(values[owner == k], default=0.0)
+                              for k in range(len(t) - 1)])  # fmt: skip
+    return out
+
+
+def test_reward_people_ground_truth_pays_the_true_peoples_social_terms():
+    """The same drive with the tracked and with the privileged reward: the same world and
+    observations, task terms equal, each one's social terms those of its own record."""
+    envs = {people: gym.make("SRPB-FFormation-v0", reward_people=people, max_episode_steps=60)
+            for people in ("tracked", "ground_truth")}  # fmt: skip
+    steps = {}
+    for people, env in envs.items():
+        obs, _ = env.reset(seed=2, options={"start": (1.0, 0.5, 0.0)})
+        observations, infos = [obs], []
+        for k in range(60):
+            obs, _, terminated, truncated, info = env.step(np.array((0.8, 0.1 * (k % 3 - 1)),
+                                                                    np.float32))  # fmt: skip
+            observations.append(obs)
+            infos.append(info)
+            if terminated or truncated:
+                break
+        steps[people] = (np.array(observations), infos)
+    (obs_t, infos_t), (obs_g, infos_g) = steps["tracked"], steps["ground_truth"]
+    np.testing.assert_array_equal(obs_t, obs_g)
+    for a, b in zip(infos_t, infos_g):
+        for term in TASK_TERMS:
+            assert a[f"reward_{term}"] == b[f"reward_{term}"]
+    for people, infos in (("tracked", infos_t), ("ground_truth", infos_g)):
+        task = envs[people].unwrapped.task
+        record = task.record if people == "tracked" else task.sim.robots[0].gt_record
+        assert task.reward_record is record
+        expected = social_steps(record, task.params)
+        for term in ("psi", "fsi", "dir"):
+            paid = np.array([info[f"srpb_step/{term}"] for info in infos])
+            np.testing.assert_allclose(paid, expected[term], rtol=1e-9, atol=1e-12)
+    psi_t = [info["srpb_step/psi"] for info in infos_t]
+    psi_g = [info["srpb_step/psi"] for info in infos_g]
+    assert sum(psi_g) > 0 and psi_t != psi_g  # the trackers' people are not the true ones
+
+
+def test_reward_people_is_checked():
+    with pytest.raises(InputError, match="tracked") as err:
+        gym.make("SRPB-Corridor-v0", reward_people="truth")
+    assert err.value.key == "reward_people"
 
 
 def hand_approach_error(row: np.ndarray, R: dict[str, int]) -> float:
