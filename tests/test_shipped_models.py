@@ -90,67 +90,69 @@ def test_eval_takes_a_short_name(name, tmp_path, capsys):
         assert [r["planner"] for r in csv.DictReader(f)] == [name]
 
 
-def test_retraining_commands_follow_each_model_recipe(monkeypatch):
-    from training.retrain_models import RUN_SETTINGS, RunSettings, commands
+def test_twins_differ_in_the_reward_alone():
+    from training.retrain_models import MODELS, RECIPES, train_command
 
-    plain = commands("ppo-crowd-task", 60, 0)
-    assert len(plain) == 2 and "--init" not in plain[0]
-    assert plain[0][plain[0].index("--hyperparams") + 1 :] == ["learning_rate=1e-4"]
-    warm = commands("ppo-mix-srpb", 60, 1)[0]
-    hyper = warm[warm.index("--hyperparams") + 1 :]
-    assert "pretrain_episodes=1000" in hyper and "torch_threads=1" in hyper
-    teachers = next(h for h in hyper if h.startswith("pretrain_teachers="))
-    assert teachers.startswith("pretrain_teachers={corridor: ppo-corridor-srpb, ")
-    # the generalist's teachers are models of the retraining script, untaught themselves
-    for scenario, teacher in RUN_SETTINGS["ppo-mix-srpb"].teachers:
-        assert teacher in MODELS and not RUN_SETTINGS.get(teacher, RunSettings()).teachers
-        assert f"{scenario}: {teacher}" in teachers
-    kwargs = warm[warm.index("--env-kwargs") + 1 : warm.index("--env-kwargs") + 3]
-    assert kwargs[0] == "weights=[1, 1, 3, 2, 3]" and kwargs[1].startswith("reward_weights={obs")
-    # both crowd stages observe the lidar log-encoded
-    assert plain[0][plain[0].index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
-    crowd = commands("ppo-crowd-srpb", 60, 0)
-    assert len(crowd) == 2 and "--init" not in crowd[0]
-    hyper = crowd[0][crowd[0].index("--hyperparams") + 1 :]
+    def parts(cmd):
+        """The command's options by name (the values after each ``--name``)."""
+        out, key = {}, None
+        for word in cmd[2:]:
+            if word.startswith("--"):
+                key = word
+                out[key] = []
+            else:
+                out[key].append(word)
+        return out
+
+    for scenario in RECIPES:
+        srpb = parts(train_command(f"ppo-{scenario}-srpb", 1, "runs/x", 1))
+        task = parts(train_command(f"ppo-{scenario}-task", 1, "runs/x", 1))
+        assert srpb["--reward"] == ["srpb"] and task["--reward"] == ["task"]
+        assert srpb["--seed"] == task["--seed"] == ["1"]
+        for option in ("--env", "--steps", "--hyperparams", "--out"):
+            assert srpb[option] == task[option], (scenario, option)
+        kw_srpb = [k for k in srpb.get("--env-kwargs", []) if not k.startswith("reward_weights")]
+        kw_task = [k for k in task.get("--env-kwargs", []) if not k.startswith("reward_weights")]
+        assert kw_srpb == kw_task, scenario
+        # the task twin pays the srpb model's collision penalty
+        collision = RECIPES[scenario].collision
+        if collision != -25.0:
+            assert f"reward_weights={{collision: {collision!r}}}" in task["--env-kwargs"]
+    assert set(MODELS) == {f"ppo-{s}-{p}" for s in RECIPES for p in ("srpb", "task")}
+
+
+def test_retraining_commands_follow_each_model_recipe(monkeypatch):
+    from training.retrain_models import RECIPES, commands
+
+    crowd = commands("ppo-crowd-srpb", [0, 1, 2], 1)
+    assert len(crowd) == 4 and [c[c.index("--seed") + 1] for c in crowd[:3]] == ["0", "1", "2"]
+    train, ship = crowd[0], crowd[-1]
+    assert train[train.index("--steps") + 1] == "3000000" and "--max-minutes" not in train
+    hyper = train[train.index("--hyperparams") + 1 :]
     assert "pretrain_planner=social-dwa" in hyper and "learning_rate=1e-4" in hyper
-    assert "n_epochs=5" in hyper and "clip_range=0.1" in hyper  # the smaller updates
-    assert "gamma=0.995" in hyper  # the longer horizon
-    kwargs = crowd[0][crowd[0].index("--env-kwargs") + 1 : crowd[0].index("--hyperparams")]
+    assert "n_epochs=5" in hyper and "clip_range=0.1" in hyper and "gamma=0.995" in hyper
+    assert hyper[-1] == "torch_threads=1"
+    kwargs = train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")]
     assert kwargs == ["observation={lidar_encoding: log, lidar_groups: 0.0001}",
                       "reward_weights={psi: -2.0, fsi: -3.0, collision: -120.0}"]  # fmt: skip
-    assert crowd[1][crowd[1].index("--validate") + 1] == "100"
-    # a model fine-tuning the best checkpoint of another model's recipe, run first, with
-    # other observation settings
-    staged = RunSettings(overrides=("learning_rate=5e-5",), start="ppo-crowd-task",
-                         validate=100, env_kwargs=("observation={lidar_groups: 0.01}",),
-                         new_observation=True)  # fmt: skip
-    monkeypatch.setitem(RUN_SETTINGS, "ppo-crowd-srpb", staged)
-    start, fine, ship = commands("ppo-crowd-srpb", 60, 0)
-    assert start[start.index("--reward") + 1] == "task"
-    assert fine[fine.index("--reward") + 1] == "srpb"
-    # the first stage is ppo-crowd-task's own recipe; the fine-tune has its own settings
-    assert (
-        start[start.index("--hyperparams") + 1 :] == plain[0][plain[0].index("--hyperparams") + 1 :]
-    )
-    assert fine[fine.index("--hyperparams") + 1 : fine.index("--init")] == ["learning_rate=5e-5"]
-    assert start[start.index("--env-kwargs") + 1] == "observation={lidar_encoding: log}"
-    assert fine[fine.index("--env-kwargs") + 1] == "observation={lidar_groups: 0.01}"
-    assert fine[-1] == "--init-new-observation"
-    assert "--env-kwargs" not in commands("ppo-corridor-task", 60, 0)[0]
-    first = start[start.index("--out") + 1]
-    assert fine[fine.index("--init") + 1] == f"{first}/best"
-    minutes = float(start[start.index("--max-minutes") + 1])
-    assert minutes + float(fine[fine.index("--max-minutes") + 1]) == 60
+    # the first seed's run is shipped, chosen between best/ and final on validation seeds
+    assert ship[ship.index("training.ship") + 1] == train[train.index("--out") + 1]
     assert ship[ship.index("--name") + 1] == "ppo-crowd-srpb"
     assert ship[ship.index("--validate") + 1] == "100"
-    monkeypatch.setitem(RUN_SETTINGS, "ppo-crowd-srpb", dataclasses.replace(
-        staged, new_observation=False))  # fmt: skip
-    assert "--init-new-observation" not in commands("ppo-crowd-srpb", 60, 0)[1]
-    assert "--validate" not in commands("ppo-corridor-task", 60, 0)[-1]
-    short = commands("ppo-fformation-srpb", 60, 0)[0]  # its own wall time, within the 60
-    assert short[short.index("--max-minutes") + 1] == "10"
-    assert "pretrain_planner=social-dwa" in short
-    assert commands("ppo-fformation-srpb", 5, 0)[0][short.index("--max-minutes") + 1] == "5"
+    assert len(commands("ppo-crowd-srpb", [0, 1], 0, ship=False)) == 2
+    plain = commands("ppo-crossing-task", [0], 0)[0]
+    assert "--env-kwargs" not in plain and "torch_threads=1" not in plain
+    mix = commands("ppo-mix-srpb", [0], 1)[0]
+    hyper = mix[mix.index("--hyperparams") + 1 :]
+    assert "pretrain_episodes=1000" in hyper
+    teachers = next(h for h in hyper if h.startswith("pretrain_teachers="))
+    assert teachers.startswith("pretrain_teachers={corridor: ppo-corridor-srpb, ")
+    kwargs = mix[mix.index("--env-kwargs") + 1 : mix.index("--hyperparams")]
+    assert kwargs == ["observation={lidar_encoding: log}", "weights=[1, 1, 3, 2, 3]"]
+    gt = dataclasses.replace(RECIPES["crowd"], reward_people="ground_truth")
+    monkeypatch.setitem(RECIPES, "crowd", gt)
+    train = commands("ppo-crowd-task", [0], 0)[0]
+    assert train[train.index("--hyperparams") - 1] == "reward_people=ground_truth"
 
 
 def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
@@ -159,12 +161,10 @@ def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
     from training import retrain_models as rm
 
     pairs = (("crowd", "ppo-crowd-task"), ("corridor", "ppo-corridor-srpb"))
-    student = rm.RunSettings(teachers=pairs)
-    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-mix-srpb", student)
-    hyper = rm.commands("ppo-mix-srpb", 60, 1)[0]
+    monkeypatch.setitem(rm.RECIPES, "mix", dataclasses.replace(rm.RECIPES["mix"], teachers=pairs))
+    hyper = rm.commands("ppo-mix-srpb", [0], 1)[0]
     hyper = hyper[hyper.index("--hyperparams") + 1 :]
-    assert hyper == ["pretrain_teachers={crowd: ppo-crowd-task, corridor: ppo-corridor-srpb}",
-                     "torch_threads=1"]  # fmt: skip
+    assert "pretrain_teachers={crowd: ppo-crowd-task, corridor: ppo-corridor-srpb}" in hyper
     shipped = ["ppo-crowd-task", "ppo-corridor-srpb"]
     everything = ["ppo-mix-srpb", "ppo-crowd-task", "ppo-fformation-task"]
     assert rm.waves(everything, shipped) == [
@@ -173,21 +173,22 @@ def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
     assert rm.waves(["ppo-mix-srpb"], shipped) == [["ppo-mix-srpb"]]  # the shipped ones teach
     with pytest.raises(ValueError, match=r"its teacher ppo-crowd-task \(crowd\) is not shipped"):
         rm.waves(["ppo-mix-srpb"], ["ppo-corridor-srpb"])
-    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-crowd-task", student)
-    with pytest.raises(ValueError, match=r"its teacher ppo-crowd-task \(crowd\) is taught too"):
+    monkeypatch.setitem(rm.MODELS, "ppo-crowd-mix", ("mix", "task"))
+    taught = (("crowd", "ppo-crowd-mix"),)
+    monkeypatch.setitem(rm.RECIPES, "mix", dataclasses.replace(rm.RECIPES["mix"], teachers=taught))
+    with pytest.raises(ValueError, match=r"its teacher ppo-crowd-mix \(crowd\) is taught too"):
         rm.waves(["ppo-mix-srpb"], shipped)
-    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-crowd-task", rm.RunSettings())
-    planner = rm.RunSettings(teachers=(("crowd", "dwa"),))
-    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-mix-srpb", planner)
+    planner = (("crowd", "dwa"),)
+    monkeypatch.setitem(rm.RECIPES, "mix", dataclasses.replace(rm.RECIPES["mix"], teachers=planner))
     with pytest.raises(ValueError, match=r"its teacher dwa \(crowd\) is no model of this script"):
         rm.waves(["ppo-mix-srpb"], shipped)
-    monkeypatch.setitem(rm.RUN_SETTINGS, "ppo-mix-srpb", student)
+    monkeypatch.setitem(rm.RECIPES, "mix", dataclasses.replace(rm.RECIPES["mix"], teachers=pairs))
 
     # a failed teacher: its student is not trained; the other models of the wave are
     ran = []
 
     def trained():
-        return [c[c.index("--out") + 1].split("/")[-1].rsplit("-", 2)[0] for c in ran
+        return [c[c.index("--out") + 1].split("/")[-1].rsplit("-", 3)[0] for c in ran
                 if c[1] == "train"]  # fmt: skip
 
     def run(cmd, check):

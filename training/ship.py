@@ -6,7 +6,7 @@ Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--fi
 the final model; ``--validate N`` tests both on N validation seeds from
 ``--validation-seed``, none of which chose best/, and takes the better by the periodic
 evaluations' rule; a test seed there is refused), evaluates it once with the
-``srpb-gym eval`` harness on ``--episodes`` test seeds from ``--seed`` (100 from
+``srpb-gym eval`` harness on ``--episodes`` test seeds from ``--seed`` (200 from
 20,000,000 by default: :data:`srpb_gym.seeds.TEST`; each scenario of the mixture for a
 model trained on SRPB-Mix-v0; the environments made with the run's env kwargs but those
 of training only, see :func:`srpb_gym.training.targets.eval_setup`), and writes
@@ -60,7 +60,7 @@ from srpb_gym.training.targets import eval_command, eval_setup
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "srpb_gym" / "models"
 #: the test seeds (:data:`srpb_gym.seeds.TEST`), used once per shipped model, at shipping
-TEST_SEED, TEST_EPISODES = TEST.start, 100
+TEST_SEED, TEST_EPISODES = TEST.start, 200
 #: the first validation seed (:data:`srpb_gym.seeds.VALIDATION`): apart from the periodic
 #: evaluations' seeds, which chose best/, the demonstrations of a warm start and the test
 #: seeds

@@ -1,0 +1,253 @@
+"""Controlled comparison of two training recipes that differ in one thing (the reward of
+twin models, the people their reward sees): each run's checkpoint evaluated on the same
+test episodes, the runs paired by training seed, the effect reported in ground truth.
+
+    python scripts/controlled_comparison.py --env SRPB-Crowd-v0 \\
+        --a runs/train/ppo-crowd-task-s0-* runs/train/ppo-crowd-task-s1-* ... \\
+        --b runs/train/ppo-crowd-srpb-s0-* runs/train/ppo-crowd-srpb-s1-* ... \\
+        --planner dwa social-dwa --episodes 200 --workers 2 --out runs/compare-crowd
+
+``--a`` and ``--b`` name ``srpb-gym train`` run folders, the i-th of each trained with the
+same seed, environment and hyperparameters (checked; what else differs is printed). Each
+run's ``best/`` (``--checkpoint final``: its final model) and every ``--planner`` run the
+same ``--episodes`` seeds from ``--seed`` (default the test range, 20,000,000:
+:data:`srpb_gym.seeds.TEST`) with the ``srpb-gym eval`` harness into ``--out`` (an
+interrupted evaluation continues there). Reported, for every run and planner: success
+with its Wilson 95 % interval, collisions (those the robot caused), and the mean and median
+of ``m_psi``, ``m_fsi`` and ``m_dir`` from ground truth (tracked beside). For every pair
+(one training seed): the success difference (B - A, McNemar) and the relative change of
+mean ground-truth ``m_psi`` (Wilcoxon on the episode differences). Pooled over the seeds:
+each episode's values averaged over the training seeds of A and of B, then the success
+difference in points and the relative change of each ground-truth metric's mean, with
+percentile bootstrap 95 % intervals over the episodes (10,000 resamples, default_rng(0))
+and the Wilcoxon signed-rank test of the episode differences. ``report.md`` and
+``report.json`` in ``--out`` hold the same.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation.data import EpisodeResult
+from srpb_gym.evaluation.harness import run_evaluation
+from srpb_gym.evaluation.intervals import wilson
+from srpb_gym.evaluation.paired import mcnemar, signed_rank
+from srpb_gym.evaluation.spec import resolve_config
+from srpb_gym.seeds import TEST
+
+METRICS = ("m_psi", "m_fsi", "m_dir")
+RESAMPLES = 10_000
+
+
+def run_config(run: Path) -> dict[str, Any]:
+    """The ``config.yaml`` of a ``srpb-gym train`` run (an error naming the run if absent)."""
+    path = run / "config.yaml"
+    if not path.is_file():
+        raise InputError("no config.yaml: not a srpb-gym train run folder", str(run),
+                         key="--a/--b")  # fmt: skip
+    return yaml.safe_load(path.read_text(encoding="utf-8"))
+
+
+def check_pairs(a: list[Path], b: list[Path]) -> list[str]:
+    """Refuse pairs of runs that differ in seed, environment or hyperparameters; the other
+    settings in which they differ, as lines to print."""
+    if len(a) != len(b) or not a:
+        raise InputError(f"--a and --b: as many runs each, at least one (got {len(a)} and "
+                         f"{len(b)})")  # fmt: skip
+    notes = []
+    for ra, rb in zip(a, b):
+        ca, cb = run_config(ra), run_config(rb)
+        for key in ("seed", "env", "hyperparams"):
+            if ca.get(key) != cb.get(key):
+                raise InputError(f"{ra} and {rb} differ in {key}: {ca.get(key)!r} against "
+                                 f"{cb.get(key)!r}")  # fmt: skip
+        differ = sorted(k for k in set(ca) | set(cb) if ca.get(k) != cb.get(k))
+        notes.append(f"seed {ca['seed']}: {ra.name} and {rb.name} differ in "
+                     f"{', '.join(differ) or 'nothing'}")  # fmt: skip
+        for key in differ:
+            notes.append(f"  {key}: {ca.get(key)!r} | {cb.get(key)!r}")
+    return notes
+
+
+def values(rows: list[EpisodeResult], metric: str, gt: bool) -> np.ndarray:
+    """The metric of every episode, by seed order (NaN where undefined)."""
+    if metric == "success":
+        return np.array([float(r.is_success) for r in rows])
+    return np.array([r.value(metric, gt) for r in rows], dtype=np.float64)
+
+
+def bootstrap(a: np.ndarray, b: np.ndarray, statistic: Any) -> tuple[float, float]:
+    """Percentile bootstrap 95 % interval of ``statistic(a, b)`` over resampled pairs."""
+    rng = np.random.default_rng(0)
+    n = a.size
+    out = np.empty(RESAMPLES)
+    for k in range(RESAMPLES):
+        idx = rng.integers(0, n, n)
+        out[k] = statistic(a[idx], b[idx])
+    low, high = np.percentile(out, [2.5, 97.5])
+    return float(low), float(high)
+
+
+def success_difference(a: np.ndarray, b: np.ndarray) -> float:
+    """mean B - mean A of success indicators, in percentage points."""
+    return 100.0 * (b.mean() - a.mean())
+
+
+def relative_change(a: np.ndarray, b: np.ndarray) -> float:
+    """(mean B - mean A) / mean A, in %."""
+    return 100.0 * (b.mean() - a.mean()) / a.mean() if a.mean() > 0 else float("nan")
+
+
+def effect(a: np.ndarray, b: np.ndarray, metric: str) -> dict[str, Any]:
+    """B against A over paired episode values (undefined pairs left out): the success
+    difference in points or a metric's relative change of the mean, its interval and the
+    Wilcoxon p of the differences."""
+    both = np.isfinite(a) & np.isfinite(b)
+    a, b = a[both], b[both]
+    stat = success_difference if metric == "success" else relative_change
+    low, high = bootstrap(a, b, stat)
+    return {"metric": metric, "n": int(a.size), "a": float(a.mean()), "b": float(b.mean()),
+            "effect": float(stat(a, b)), "ci": [low, high], "p": signed_rank(b - a)}  # fmt: skip
+
+
+def run_row(label: str, rows: list[EpisodeResult]) -> dict[str, Any]:
+    """The figures of one run or planner."""
+    n = len(rows)
+    wins = sum(r.is_success for r in rows)
+    low, high = wilson(wins, n) or (float("nan"), float("nan"))
+    collided = [r for r in rows if r.collision]
+    by_robot = sum(1 for r in collided if r.first_collision and r.first_collision.by == "robot")
+    row = {"label": label, "episodes": n, "success": 100.0 * wins / n, "ci": [low, high],
+           "collision": 100.0 * len(collided) / n,
+           "robot_caused": 100.0 * by_robot / n}  # fmt: skip
+    for metric in METRICS:
+        for gt, tag in ((True, "gt"), (False, "tracked")):
+            v = values(rows, metric, gt)
+            v = v[np.isfinite(v)]
+            row[f"{metric}_{tag}_mean"] = float(v.mean()) if v.size else None
+            row[f"{metric}_{tag}_median"] = float(np.median(v)) if v.size else None
+    return row
+
+
+def analyse(results: list[EpisodeResult], a: list[str], b: list[str], planners: list[str],
+            names: tuple[str, str]) -> dict[str, Any]:  # fmt: skip
+    """Every figure of the report from the evaluated episodes."""
+    by: dict[str, list[EpisodeResult]] = {}
+    for r in results:
+        by.setdefault(r.planner, []).append(r)
+    for rows in by.values():
+        rows.sort(key=lambda r: r.seed)
+    seeds = [r.seed for r in by[a[0]]]
+    for label in [*a, *b, *planners]:
+        if [r.seed for r in by.get(label, [])] != seeds:
+            raise InputError(f"{label}: not every episode was evaluated; run again to finish")
+    report: dict[str, Any] = {
+        "names": list(names),
+        "episodes": len(seeds),
+        "seeds": [seeds[0], seeds[-1]],
+        "runs": [run_row(label, by[label]) for label in [*a, *b, *planners]],
+    }
+    pairs = []
+    for la, lb in zip(a, b):
+        sa, sb = values(by[la], "success", False), values(by[lb], "success", False)
+        a_only, b_only = int(np.sum((sa == 1) & (sb == 0))), int(np.sum((sa == 0) & (sb == 1)))
+        psi = effect(values(by[la], "m_psi", True), values(by[lb], "m_psi", True), "m_psi")
+        pairs.append({"a": la, "b": lb, "success": 100.0 * (sb.mean() - sa.mean()),
+                      "p_success": mcnemar(a_only, b_only), "m_psi_gt": psi})  # fmt: skip
+    report["pairs"] = pairs
+    pooled = {}
+    for metric in ("success", *METRICS):
+        gt = metric != "success"
+        ma = np.mean([values(by[label], metric, gt) for label in a], axis=0)
+        mb = np.mean([values(by[label], metric, gt) for label in b], axis=0)
+        pooled[metric] = effect(ma, mb, metric)
+    report["pooled"] = pooled
+    return report
+
+
+def _num(value: float | None, fmt: str = ".3g") -> str:
+    return "n/a" if value is None or not np.isfinite(value) else format(value, fmt)
+
+
+def markdown(report: dict[str, Any]) -> str:
+    na, nb = report["names"]
+    lines = [f"{report['episodes']} episodes, seeds {report['seeds'][0]}-{report['seeds'][1]}; "
+             "metrics from ground truth (tracked in brackets), mean / median", "",
+             "| run | success | collisions (robot) | m_psi | m_fsi | m_dir |",
+             "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    for row in report["runs"]:
+        cells = [f"{_num(row[f'{m}_gt_mean'])} / {_num(row[f'{m}_gt_median'])} "
+                 f"({_num(row[f'{m}_tracked_median'])})" for m in METRICS]  # fmt: skip
+        lines.append(f"| {row['label']} | {row['success']:.1f} % [{row['ci'][0]:.1f}-"
+                     f"{row['ci'][1]:.1f}] | {row['collision']:.1f} % ({row['robot_caused']:.1f} "
+                     f"%) | {' | '.join(cells)} |")  # fmt: skip
+    lines += ["", f"Pairs ({nb} against {na}, one training seed each):", "",
+              "| pair | success B - A | McNemar p | mean GT m_psi change | Wilcoxon p |",
+              "| --- | --- | --- | --- | --- |"]  # fmt: skip
+    for p in report["pairs"]:
+        e = p["m_psi_gt"]
+        lines.append(f"| {p['b']} vs {p['a']} | {p['success']:+.1f} pt | {p['p_success']:.3g} "
+                     f"| {e['effect']:+.1f} % [{e['ci'][0]:+.1f}, {e['ci'][1]:+.1f}] | "
+                     f"{_num(e['p'])} |")  # fmt: skip
+    lines += ["", f"Pooled over the training seeds ({nb} against {na}, episode values averaged "
+              "over the seeds):", "", "| figure | A | B | B against A | 95 % interval | "
+              "Wilcoxon p | n |", "| --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    for metric, e in report["pooled"].items():
+        if metric == "success":
+            label, scale, unit = "success", 100.0, " pt"
+        else:
+            label, scale, unit = f"mean GT {metric}", 1.0, " %"
+        lines.append(f"| {label} | {_num(scale * e['a'])} | {_num(scale * e['b'])} | "
+                     f"{e['effect']:+.1f}{unit} | [{e['ci'][0]:+.1f}, {e['ci'][1]:+.1f}] | "
+                     f"{_num(e['p'])} | {e['n']} |")  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--env", required=True, help="environment id")
+    parser.add_argument("--a", type=Path, nargs="+", required=True, help="runs of recipe A")
+    parser.add_argument("--b", type=Path, nargs="+", required=True, help="runs of recipe B")
+    parser.add_argument("--names", nargs=2, default=("A", "B"), help="names of A and B")
+    parser.add_argument("--planner", nargs="*", default=[], help="classical planners beside")
+    parser.add_argument("--checkpoint", choices=("best", "final"), default="best")
+    parser.add_argument("--episodes", type=int, default=200)
+    parser.add_argument("--seed", type=int, default=TEST.start)
+    parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--out", required=True)
+    args = parser.parse_args(argv)
+    try:
+        for line in check_pairs(args.a, args.b):
+            print(line)
+        models = [str(run / "best") if args.checkpoint == "best" else str(run / "model.zip")
+                  for run in [*args.a, *args.b]]  # fmt: skip
+        resume = os.path.isfile(os.path.join(args.out, "episodes.csv"))
+        config = resolve_config([args.env], planners=args.planner or None, policies=models,
+                                episodes=args.episodes, seed=args.seed, out=args.out,
+                                workers=args.workers, warmup=0, resume=resume)  # fmt: skip
+        outcome = run_evaluation(config)
+        labels = [spec.name for spec in config.planners if spec.policy is not None]
+        n = len(args.a)
+        report = analyse(outcome.results, labels[:n], labels[n:], list(args.planner),
+                         tuple(args.names))  # fmt: skip
+    except InputError as exc:
+        print(f"controlled_comparison: {exc}", file=sys.stderr)
+        return 2
+    text = markdown(report)
+    print(text)
+    Path(args.out, "report.md").write_text(text, encoding="utf-8")
+    Path(args.out, "report.json").write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,75 @@
+"""scripts/controlled_comparison.py: pairs checked, effects and intervals by hand."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from scripts import controlled_comparison as cc
+from srpb_gym.errors import InputError
+from srpb_gym.evaluation.data import EpisodeResult
+
+
+def episode(planner: str, seed: int, success: bool, psi: float) -> EpisodeResult:
+    metrics = {"m_psi": psi + 1.0, "m_fsi": 0.0, "m_dir": 0.0}  # tracked: another value
+    truth = {"m_psi": psi, "m_fsi": 0.0, "m_dir": 0.0}
+    return EpisodeResult(env="SRPB-Crowd-v0", planner=planner, seed=seed, is_success=success,
+                         collision=not success, timeout=False, metrics=metrics,
+                         ground_truth=truth)  # fmt: skip
+
+
+def test_effects_by_hand():
+    # two training seeds per recipe, four episodes; B halves A's ground-truth m_psi
+    psi_a = {"a0": [10, 20, 30, 40], "a1": [30, 20, 10, 0]}
+    psi_b = {"b0": [5, 10, 15, 20], "b1": [15, 10, 5, 0]}
+    results = []
+    for label, psi in {**psi_a, **psi_b}.items():
+        for seed, value in enumerate(psi):
+            results.append(episode(label, 100 + seed, success=not (label == "b1" and seed == 0),
+                                   psi=float(value)))  # fmt: skip
+    report = cc.analyse(results, ["a0", "a1"], ["b0", "b1"], [], ("task", "srpb"))
+    pooled = report["pooled"]
+    # episode means over the seeds: A 20, 20, 20, 20; B 10, 10, 10, 10
+    assert pooled["m_psi"]["a"] == 20.0 and pooled["m_psi"]["b"] == 10.0
+    assert pooled["m_psi"]["effect"] == pytest.approx(-50.0)
+    # success: B failed one of 8 seed-episodes: mean over episodes 7/8 against 1
+    assert pooled["success"]["effect"] == pytest.approx(-12.5)
+    assert pooled["success"]["ci"][0] <= -12.5 <= pooled["success"]["ci"][1]
+    first = report["pairs"][0]
+    assert first["m_psi_gt"]["effect"] == pytest.approx(-50.0)
+    assert first["success"] == 0.0 and first["p_success"] == 1.0
+    assert report["pairs"][1]["success"] == pytest.approx(-25.0)
+    row = report["runs"][0]
+    assert row["m_psi_gt_mean"] == 25.0 and row["m_psi_tracked_median"] == 26.0
+    assert "| -50.0 %" in cc.markdown(report)
+
+
+def test_every_pair_must_be_evaluated_on_the_same_episodes():
+    results = [episode("a", 1, True, 1.0), episode("b", 2, True, 1.0)]
+    with pytest.raises(InputError, match="b: not every episode"):
+        cc.analyse(results, ["a"], ["b"], [], ("A", "B"))
+
+
+def write_run(folder, seed=0, lr=1e-4, reward="task"):
+    folder.mkdir()
+    config = {"env": "SRPB-Crowd-v0", "seed": seed, "reward": reward,
+              "hyperparams": {"learning_rate": lr}}  # fmt: skip
+    (folder / "config.yaml").write_text(yaml.safe_dump(config))
+    return folder
+
+
+def test_pairs_differ_only_where_allowed(tmp_path):
+    a = write_run(tmp_path / "a")
+    b = write_run(tmp_path / "b", reward="srpb")
+    notes = cc.check_pairs([a], [b])
+    assert "differ in reward" in notes[0] and "'task' | 'srpb'" in notes[1]
+    with pytest.raises(InputError, match="differ in seed"):
+        cc.check_pairs([a], [write_run(tmp_path / "c", seed=1)])
+    with pytest.raises(InputError, match="differ in hyperparams"):
+        cc.check_pairs([a], [write_run(tmp_path / "d", lr=3e-4)])
+    with pytest.raises(InputError, match="as many runs"):
+        cc.check_pairs([a], [b, b])
+    with pytest.raises(InputError, match="not a srpb-gym train run"):
+        cc.check_pairs([a], [tmp_path])
+    assert np.isnan(cc.relative_change(np.zeros(3), np.ones(3)))
