@@ -8,7 +8,7 @@ TORCH ?= torch==2.13.0
 DEMO_STAMP := $(VENV)/.installed-demo
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint bench clean setup setup-demo
+.PHONY: demo test lint bench clean setup setup-demo docs docs-serve docs-check
 
 setup: $(STAMP)
 
@@ -24,7 +24,7 @@ $(DEMO_STAMP): pyproject.toml | $(VENV)/bin/python
 
 $(STAMP): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
-	$(BIN)/python -m pip install --quiet -e ".[train,plot,dev]"
+	$(BIN)/python -m pip install --quiet -e ".[train,plot,dev,docs]"
 	touch $(DEMO_STAMP) $(STAMP)
 
 demo: $(DEMO_STAMP)
@@ -37,8 +37,20 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 
+# the documentation site, into site/ (strict: a broken link, anchor or reference fails)
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict
+
+docs-serve: $(STAMP)
+	$(BIN)/mkdocs serve
+
+# the built site in headless Chromium (Debian's package, installed if missing)
+docs-check: docs
+	command -v chromium >/dev/null || (apt-get update -q && apt-get install -y -q chromium)
+	$(BIN)/python scripts/docs_check.py site
+
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_metrics.py
 
 clean:
-	rm -rf $(VENV) build dist *.egg-info .pytest_cache
+	rm -rf $(VENV) build dist *.egg-info .pytest_cache site
