@@ -151,7 +151,9 @@ def model_page(name: str) -> str:
     scenario = "mix" if env_id == MIX_ID else SCENARIO_IDS.get(env_id, "")
     extra = []
     if (ROOT / "docs" / "videos" / f"{name}.gif").exists():
-        extra += ["## One test episode", "", f"![{name}, seed 10000](../videos/{name}.gif)", ""]
+        where = " (in `doorway`)" if scenario == "mix" else ""
+        extra += ["## One test episode", "", f"Seed 10000{where}:", "",
+                  f"![{name}, seed 10000](../videos/{name}.gif)", ""]  # fmt: skip
     if (ROOT / "docs" / "figures" / f"learning_{scenario}.png").exists():
         extra += ["## Learning curves", "",
                   f"![learning curves, {scenario}](../figures/learning_{scenario}.png)",
