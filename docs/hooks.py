@@ -85,7 +85,8 @@ def env_page(env_id: str) -> str:
     cls = getattr(__import__(module, fromlist=[name]), name)
     summary, body = docstring_body(cls)
     rows = [("make", f'`gym.make("{env_id}")`'), ("entry point", f"`{spec.entry_point}`"),
-            ("step limit", f"`max_episode_steps={spec.max_episode_steps}`")]  # fmt: skip
+            ("step limit", f"`max_episode_steps={spec.max_episode_steps}`"),
+            ("API", f"[`{name}`](../api.md#{module}.{name})")]  # fmt: skip
     intro = ""
     scenario = spec.kwargs.get("scenario")
     if scenario:
@@ -109,7 +110,8 @@ def parallel_page() -> str:
     summary, body = docstring_body(SRPBParallelEnv)
     rows = [("make", '`srpb_gym.parallel_env(scenario="crowd", n_robots=3)`'),
             ("AEC version", '`srpb_gym.aec_env(scenario="crowd", n_robots=3)`'),
-            ("class", "`srpb_gym.pettingzoo_env.SRPBParallelEnv`"),
+            ("class", "[`srpb_gym.pettingzoo_env.SRPBParallelEnv`]"
+                      "(../api.md#srpb_gym.pettingzoo_env.SRPBParallelEnv)"),
             ("name", f"`{SRPBParallelEnv.metadata['name']}`")]  # fmt: skip
     return (f"# PettingZoo parallel environment\n\n"
             f"![three robots in crowd](../figures/envs/{PARALLEL_PICTURE}.png)\n\n"
