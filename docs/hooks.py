@@ -167,6 +167,12 @@ def home_page() -> str:
     """The README, with its links pointing into the site."""
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     text = text.replace("](envs/README.md)", "](scenario-files.md)")
+    source = "Each id links to its source (a scenario file, a docstring); on the site, to its page."
+    text = text.replace(source, "Each id links to its page.")
+    for env_id, scenario in SCENARIO_IDS.items():
+        text = text.replace(f"](envs/{scenario}.yaml)", f"](environments/{env_id}.md)")
+    text = text.replace("](srpb_gym/mix.py)", f"](environments/{MIX_ID}.md)")
+    text = text.replace("](srpb_gym/pettingzoo_env.py)", "](environments/parallel.md)")
     return text.replace("](docs/", "](").replace('src="docs/', 'src="')
 
 

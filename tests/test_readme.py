@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from tests.doc_examples import ROOT, check, examples
@@ -19,3 +21,13 @@ def test_readme_is_short():
 @pytest.mark.parametrize("example", examples(README), ids=lambda e: e.name)
 def test_example_output(example, tmp_path):
     check(example, tmp_path)
+
+
+def test_links_lead_to_files():
+    """On a repository's page the README's relative links lead to files (the site's pages
+    generated at build time do not exist there; the home page's links are rewritten)."""
+    text = README.read_text(encoding="utf-8")
+    targets = re.findall(r"\]\(([^)#\s]+)[^)]*\)", text) + re.findall(r'src="([^"]+)"', text)
+    for target in targets:
+        if "://" not in target:
+            assert (ROOT / target).exists(), f"README.md links to {target}, which does not exist"
