@@ -12,8 +12,9 @@ without bias. The seeds are therefore split into ranges, each for one use:
   DAgger rounds);
 * :data:`VALIDATION`, 3,000,000-3,999,999: every other choice (``training.ship
   --validate``, recipe comparisons, tuning, analyses that inform them);
-* :data:`TEST`, 20,000,000-20,999,999: a shipped model's test figures, computed once, at
-  shipping (``training.ship``); never a choice;
+* :data:`TEST`, 20,000,000-20,999,999: reports, never a choice: a shipped model's test
+  figures, computed once, at shipping (``training.ship``), and the comparisons of
+  finished recipes (``scripts/controlled_comparison.py``);
 * :data:`RETIRED_TEST`, 10,000-10,999: the former test seeds. Evaluated for dozens of
   candidate models, they decided whether searches went on, so they are no longer held
   out; kept only to reproduce the figures of the cards shipped before (numerically they
