@@ -14,7 +14,7 @@ from srpb_gym.config import parse_overrides
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation import resolve_config, run_evaluation
 from srpb_gym.evaluation.figures import video_support
-from srpb_gym.evaluation.spec import DEFAULT_WARMUP, ENV_IDS
+from srpb_gym.evaluation.spec import BACKENDS, DEFAULT_WARMUP, ENV_IDS
 from srpb_gym.metrics.params import PRESETS, SEMANTICS
 from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS
 from srpb_gym.planners.config import planner_settings
@@ -76,9 +76,18 @@ def add_eval_command(subparsers: Any) -> None:
     p.add_argument("--resume", action="store_true",
                    help="continue the interrupted run in --out (same options; finished "
                         "episodes are kept, the others run)")  # fmt: skip
-    p.add_argument("--workers", type=int, default=1, metavar="N",
+    p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="worker processes (default: 1; at most the CPU count and the "
-                        "number of episodes)")  # fmt: skip
+                        "number of episodes); with --backend ray the episodes running at "
+                        "once (default: every CPU of the Ray cluster)")  # fmt: skip
+    p.add_argument("--backend", choices=BACKENDS, default="process",
+                   help="where the episodes run: process (this process or --workers "
+                        "worker processes, default) or ray (Ray tasks: a local Ray, or the "
+                        "cluster at --address; needs pip install \"srpb-gym[ray]\")")  # fmt: skip
+    p.add_argument("--address", metavar="ADDR",
+                   help="the Ray cluster to run on (with --backend ray), e.g. "
+                        "ray://head:10001 or head:6379 (default: start Ray on this "
+                        "machine)")  # fmt: skip
     p.add_argument("--warmup", type=int, default=DEFAULT_WARMUP, metavar="STEPS",
                    help="untimed control steps of each planner before its first timed "
                         f"episode, in each process (default: {DEFAULT_WARMUP}; 0: none)",
@@ -111,16 +120,20 @@ def run_eval(args: argparse.Namespace) -> int:
         missing = video_support()
         if missing:
             raise InputError(missing, key="--video")
+    if args.address is not None and args.backend != "ray":
+        raise InputError("a Ray cluster's address needs --backend ray", key="--address")
+    workers = args.workers if args.workers is not None else (0 if args.backend == "ray" else 1)
     if args.resume and not args.out:
         raise InputError("give the folder of the run to continue with --out", key="--resume")
     config = resolve_config(
         args.env, args.planner, args.policy, policy_algo=args.policy_algo,
         vecnormalize=args.vecnormalize, episodes=args.episodes, seed=args.seed, out=args.out,
-        workers=args.workers, video=args.video, semantics=args.semantics, preset=args.preset,
+        workers=workers, video=args.video, semantics=args.semantics, preset=args.preset,
         planner_settings=planner_settings(args.planner_config, args.planner_param),
         argv=getattr(args, "argv", ()), warmup=args.warmup, resume=args.resume, log=stderr,
         robots=args.robots, env_kwargs=parse_overrides(args.env_kwargs, "--env-kwargs"),
         video_stride=args.video_stride, trust_pickle=args.trust_pickle,
+        backend=args.backend, address=args.address,
     )  # fmt: skip
     try:
         outcome = run_evaluation(config, log=stderr)

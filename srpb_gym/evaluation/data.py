@@ -86,7 +86,10 @@ class EvalConfig:
     (one line each, e.g. ``"warning: ..."``). ``robots``: robots per episode; more than
     one runs the PettingZoo environment (:meth:`make_parallel`), one the Gymnasium one.
     ``make_kwargs``: keyword arguments given to every environment (``--env-kwargs``), under
-    the evaluation's own (:meth:`env_kwargs`)."""
+    the evaluation's own (:meth:`env_kwargs`). ``backend``: where the episodes run,
+    ``"process"`` (this process, or ``workers`` worker processes) or ``"ray"`` (Ray tasks,
+    :mod:`~srpb_gym.evaluation.ray_pool`: a local Ray, or the cluster at ``address``;
+    ``workers`` then caps the episodes running at once, 0: every CPU of the cluster)."""
 
     envs: tuple[str, ...]
     planners: tuple[PlannerSpec, ...]
@@ -105,6 +108,8 @@ class EvalConfig:
     robots: int = 1
     make_kwargs: Mapping[str, Any] = field(default_factory=dict, hash=False)
     video_stride: int = 1
+    backend: str = "process"
+    address: str | None = None
 
     @property
     def seeds(self) -> list[int]:

@@ -197,6 +197,8 @@ def resolved_config(config: EvalConfig) -> dict[str, Any]:
         "semantics": config.semantics,
         "preset": config.preset,
         "workers": config.workers,
+        "backend": config.backend,
+        "address": config.address,
         "warmup": {"steps": config.warmup, "seed": config.warmup_seed},
         "video": config.video,
         "video_stride": config.video_stride,

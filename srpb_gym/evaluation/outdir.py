@@ -22,7 +22,7 @@ from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, Task, jsonable, 
 
 RUN_FILES: tuple[str, ...] = ("config.json", "command.txt", "versions.json")
 RESUME_FREE: frozenset[str] = frozenset(
-    {"created", "out", "workers", "video", "video_stride", "notes"}
+    {"created", "out", "workers", "video", "video_stride", "notes", "backend", "address"}
 )
 """Top-level keys of ``config.json`` that may differ when resuming: none changes a figure."""
 RESUME_VERSIONS: tuple[str, ...] = (

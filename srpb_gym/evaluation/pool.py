@@ -19,6 +19,7 @@ from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wai
 from contextlib import AbstractContextManager, contextmanager
 from typing import Any
 
+from srpb_gym.evaluation import ray_pool
 from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, Task
 from srpb_gym.evaluation.runner import Workspace
 from srpb_gym.registration import MIX_ID
@@ -48,7 +49,8 @@ def _context() -> Any:
 def run_tasks(
     config: EvalConfig, tasks: Sequence[Task], on_result: Callable[[EpisodeResult], None]
 ) -> bool:
-    """Run ``tasks`` (``config.workers`` processes), calling ``on_result`` with each result
+    """Run ``tasks`` (``config.workers`` processes, or Ray tasks with ``config.backend``
+    ``"ray"``: :mod:`~srpb_gym.evaluation.ray_pool`), calling ``on_result`` with each result
     (each robot's, in robot order) as its episode finishes. Returns ``True`` if interrupted
     (Ctrl-C); files of unfinished episodes are then removed, so what is on disk is exactly
     the finished episodes."""
@@ -62,7 +64,9 @@ def run_tasks(
             on_result(result)
 
     try:
-        if config.workers == 1 or len(tasks) == 1:
+        if config.backend == "ray":
+            ray_pool.run_ray(config, tasks, finish, _sigint_as_flag)
+        elif config.workers == 1 or len(tasks) == 1:
             _run_here(config, tasks, finish)
         else:
             _run_pool(config, tasks, finish)

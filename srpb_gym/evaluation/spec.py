@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from srpb_gym.errors import InputError, env_kwargs_error
+from srpb_gym.evaluation import ray_pool
 from srpb_gym.evaluation.data import DEFAULT_EPISODES, DEFAULT_WARMUP, EvalConfig, PlannerSpec
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.evaluation.policies import policy_specs
@@ -42,6 +43,8 @@ DEFAULT_ENVS: tuple[str, ...] = ("SRPB-Corridor-v0",)
 ENV_IDS: tuple[str, ...] = (*SCENARIO_IDS, MIX_ID)
 """The registered ids an evaluation runs (a scenario file runs as ``SRPB-Custom-v0``)."""
 SCENARIO_SUFFIXES = (".yaml", ".yml")
+BACKENDS: tuple[str, ...] = ("process", "ray")
+"""Where the episodes run: worker processes of this machine, or Ray tasks."""
 
 
 def default_out(now: float | None = None) -> str:
@@ -77,6 +80,8 @@ def resolve_config(
     env_kwargs: Mapping[str, Any] | None = None,
     video_stride: int = 1,
     trust_pickle: bool = False,
+    backend: str = "process",
+    address: str | None = None,
 ) -> EvalConfig:
     """Check every choice and fill in the defaults: :data:`DEFAULT_ENVS`, every registered
     planner (:data:`~srpb_gym.planners.PLANNERS`; a reference planner of
@@ -99,7 +104,11 @@ def resolve_config(
     (errors: key ``--env-kwargs``); the keys the evaluation sets itself
     (:data:`RESERVED_ENV_KWARGS`) are refused. ``video_stride``: film every this many
     control steps (at least 1). ``trust_pickle``: the user trusts the pickles of the policy
-    files (see :func:`~srpb_gym.evaluation.policies.policy_specs`).
+    files (see :func:`~srpb_gym.evaluation.policies.policy_specs`). ``backend``:
+    ``"process"`` or ``"ray"`` (Ray tasks on a local Ray, or on the cluster at ``address``;
+    ``workers`` then caps the episodes running at once, 0: every CPU of the cluster, and
+    is capped at the number of episodes only); ``address`` without ``"ray"``, or
+    ``"ray"`` without Ray installed, is an :class:`InputError`.
     """
     notes: list[str] = []
 
@@ -108,7 +117,8 @@ def resolve_config(
         if log is not None:
             log(line)
 
-    _check_counts(episodes, workers, video, warmup, video_stride)
+    _check_backend(backend, address)
+    _check_counts(episodes, workers, video, warmup, video_stride, 0 if backend == "ray" else 1)
     if seed < 0:
         raise InputError(f"must be at least 0, got {seed}", key="--seed")
     if semantics not in SEMANTICS:
@@ -135,11 +145,15 @@ def resolve_config(
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
         raise InputError(f"two planners are named {dup!r}; rename a policy file", key="--policy")
-    workers = _cap_workers(workers, len(env_ids) * len(specs) * episodes, note)
+    planned = len(env_ids) * len(specs) * episodes
+    # Ray: the cluster's CPUs are counted when it is reached
+    ray = backend == "ray"
+    workers = min(workers, planned) if ray else _cap_workers(workers, planned, note)
     out = check_out_dir(out or default_out(), resume=resume)
     return EvalConfig(tuple(env_ids), tuple(specs), episodes, seed, out, workers, video,
                       semantics, preset, tuple(argv), tuple(files), warmup, resume,
-                      tuple(notes), robots, probe.make_kwargs, video_stride)  # fmt: skip
+                      tuple(notes), robots, probe.make_kwargs, video_stride, backend,
+                      address)  # fmt: skip
 
 
 #: ``gym.make`` keywords an evaluation sets itself, with the option that sets each
@@ -226,11 +240,22 @@ def _check_robots(robots: int, env_ids: Sequence[str], files: Mapping[str, str])
             raise InputError(exc.message, files.get(env), key="--robots") from None
 
 
-def _check_counts(episodes: int, workers: int, video: int, warmup: int, video_stride: int) -> None:
+def _check_backend(backend: str, address: str | None) -> None:
+    if backend not in BACKENDS:
+        raise InputError(f"choose one of: {', '.join(BACKENDS)}, got {backend!r}", key="--backend")
+    if address is not None and backend != "ray":
+        raise InputError("a Ray cluster's address needs --backend ray", key="--address")
+    if backend == "ray":
+        ray_pool.check_installed()
+
+
+def _check_counts(
+    episodes: int, workers: int, video: int, warmup: int, video_stride: int, least: int = 1
+) -> None:
     if episodes < 1:
         raise InputError(f"must be at least 1, got {episodes}", key="--episodes")
-    if workers < 1:
-        raise InputError(f"must be at least 1, got {workers}", key="--workers")
+    if workers < least:
+        raise InputError(f"must be at least {least}, got {workers}", key="--workers")
     if video < 0:
         raise InputError(f"must be at least 0, got {video}", key="--video")
     if warmup < 0:
