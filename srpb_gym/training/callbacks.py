@@ -26,7 +26,7 @@ import os
 import shutil
 import time
 from collections import deque
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -174,13 +174,18 @@ class PeriodicEvalCallback(BaseCallback):
     stay in ``evaluations.csv``; the records of all of them would fill a disk: about 75 MB
     per evaluation of the five-scenario mixture, 4.5 GB in a 3-million-step run). ``env_kwargs``:
     keyword arguments of the evaluated environments (those of training that change what
-    the policy sees or meets, e.g. ``observation`` or ``crowd``)."""
+    the policy sees or meets, e.g. ``observation`` or ``crowd``). ``on_eval``: called with
+    the step and the figures by environment after each evaluation (a Ray Tune trial
+    reports them: :mod:`srpb_gym.training.tune`)."""
 
     def __init__(self, run_dir: str, env_ids: Sequence[str], eval_freq: int, episodes: int,
                  log: Any = None, progress: bool = True,
                  env_kwargs: Mapping[str, Any] | None = None,
-                 seed: int = EVAL_SEED) -> None:  # fmt: skip
+                 seed: int = EVAL_SEED,
+                 on_eval: Callable[[int, dict[str, dict[str, float]]], None] | None = None,
+                 ) -> None:  # fmt: skip
         super().__init__()
+        self.on_eval = on_eval
         check_not_test(seed, episodes, "periodic evaluation seed")
         check_within(CHECKPOINT_SELECTION, seed, episodes, "periodic evaluation seed")
         self.seed = seed
@@ -245,6 +250,8 @@ class PeriodicEvalCallback(BaseCallback):
         self._prune(ckpt)
         self.log(f"eval at step {step}: success {100 * success:.0f}% "
                  f"(best {100 * self.best[0]:.0f}%)")  # fmt: skip
+        if self.on_eval is not None:
+            self.on_eval(step, figures)
         return figures
 
     def _append(self, rows: list[dict[str, Any]]) -> None:

@@ -9,8 +9,10 @@ import sys
 from typing import Any
 
 from srpb_gym.errors import InputError
+from srpb_gym.evaluation.ray_pool import check_installed
 from srpb_gym.models.shipped import MODEL_FILE
-from srpb_gym.training.config import parse_overrides, resolve
+from srpb_gym.training.config import DEFAULT_VALIDATION_EPISODES, parse_overrides, resolve
+from srpb_gym.training.run_folder import default_out
 from srpb_gym.training.targets import eval_command as command_line
 from srpb_gym.training.targets import eval_setup
 
@@ -64,11 +66,40 @@ def add_train_command(subparsers: Any) -> None:
                    "vecnormalize.pkl and a model.zip's pickled attributes (a pickle is "
                    "code; without it a .pkl is refused)")  # fmt: skip
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    ray = p.add_argument_group(
+        "several seeds or a grid on Ray Tune",
+        "each trial is one run folder <out>/<trial>, as a single run writes it; the best "
+        "trial is chosen on the validation seeds (docs: training/README.md)",
+    )
+    ray.add_argument("--backend", choices=("process", "ray"), default="process",
+                     help="process: one run here (default); ray: --seeds x --grid as Ray "
+                     "Tune trials (pip install \"srpb-gym[ray]\")")  # fmt: skip
+    ray.add_argument("--seeds", type=int, nargs="+", metavar="S",
+                     help="seeds of the trials (with --backend ray; default: --seed)",
+                     )  # fmt: skip
+    ray.add_argument("--grid", nargs="+", default=[], metavar="KEY=[V1, V2]",
+                     help="hyperparameter values to try (with --backend ray), e.g. "
+                     "'learning_rate=[0.0003, 0.001]'; every combination with every seed",
+                     )  # fmt: skip
+    ray.add_argument("--validation-episodes", type=int, default=DEFAULT_VALIDATION_EPISODES,
+                     metavar="N", help="episodes per environment on the validation seeds "
+                     "that choose the best trial (default: "
+                     f"{DEFAULT_VALIDATION_EPISODES})")  # fmt: skip
+    ray.add_argument("--address", metavar="ADDR",
+                     help="the Ray cluster (with --backend ray; default: Ray on this "
+                     "machine); --out must then be on a file system every node sees",
+                     )  # fmt: skip
     p.set_defaults(func=run_train)
 
 
 def run_train(args: argparse.Namespace) -> int:
     """Resolve the configuration, train, say where the run is."""
+    for option, given in (("--seeds", args.seeds), ("--grid", args.grid),
+                          ("--address", args.address)):  # fmt: skip
+        if given and args.backend != "ray":
+            raise InputError("runs trials on Ray Tune: add --backend ray", key=option)
+    if args.backend == "ray":
+        return run_sweep(args)
     overrides = parse_overrides(args.hyperparams)
     if args.steps is not None:
         overrides["n_timesteps"] = args.steps
@@ -93,6 +124,39 @@ def run_train(args: argparse.Namespace) -> int:
     print(f"{state} after {result.steps} steps in {result.wall_time:.0f} s; run in {result.out}")
     print(f"evaluate it: {eval_command(args.env, env_kwargs, result.out)}")
     return 130 if result.interrupted else 0
+
+
+def run_sweep(args: argparse.Namespace) -> int:
+    """``--backend ray``: the seeds and grid points as Ray Tune trials."""
+    if args.init is not None or args.init_new_observation:
+        raise InputError("trials start from random weights here", key="--init")
+    overrides = parse_overrides(args.hyperparams)
+    if args.steps is not None:
+        overrides["n_timesteps"] = args.steps
+    resolve(args.env, overrides, args.config)  # every key checked before Ray starts
+    grid = parse_overrides(args.grid, "--grid")
+    check_installed()
+    try:
+        # deferred: tune imports run, which imports stable_baselines3 and torch (train extra)
+        from srpb_gym.training import tune
+    except ImportError as exc:
+        raise InputError(f"{INSTALL_HINT} ({exc})") from None
+    out = args.out or default_out(args.env, args.reward).replace("train", "tune", 1)
+    sweep = tune.SweepSpec(
+        args.env, overrides, None if args.config is None else os.path.abspath(args.config),
+        args.reward, parse_overrides(args.env_kwargs, "--env-kwargs"), out, os.getcwd(),
+        args.validation_episodes, args.max_minutes, tuple(getattr(args, "argv", ())),
+    )  # fmt: skip
+    outcome = tune.run_sweep(sweep, args.seeds or [args.seed], grid, args.address,
+                             log=lambda line: print(f"srpb-gym: {line}",
+                                                    file=sys.stderr))  # fmt: skip
+    failed = [t["trial"] for t in outcome.trials if t["error"]]
+    if outcome.best is not None:
+        print(f"best trial on the validation seeds: {outcome.best} "
+              f"({os.path.join(outcome.out, outcome.best)})")  # fmt: skip
+    print(f"{len(outcome.trials) - len(failed)} of {len(outcome.trials)} trials finished; "
+          f"trials.csv and best.json in {outcome.out}")  # fmt: skip
+    return 1 if failed else 0
 
 
 def eval_command(env_id: str, env_kwargs: dict[str, Any], out: str) -> str:

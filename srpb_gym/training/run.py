@@ -150,6 +150,7 @@ def train(
     init: str | None = None,
     init_new_observation: bool = False,
     trust_pickle: bool = False,
+    on_eval: Callable[[int, dict[str, dict[str, float]]], None] | None = None,
 ) -> TrainResult:
     """Train PPO on ``env_id`` with reward preset ``preset``; see the module docstring.
     ``max_minutes``: stop after this much wall time even if steps remain (``run.json``
@@ -160,14 +161,15 @@ def train(
     recorded with other observation settings is refused unless ``init_new_observation``
     (the shapes must match either way: a fine-tune to the new settings; ``run.json`` keeps
     the model's settings as ``init.observation``). ``trust_pickle``: let the pickles of
-    ``init`` and of the warm start's teachers be unpickled (``--trust-pickle``)."""
+    ``init`` and of the warm start's teachers be unpickled (``--trust-pickle``).
+    ``on_eval``: called with the step and the figures of each periodic evaluation."""
     run = set_up(env_id, config, preset=preset, seed=seed, out=out, env_kwargs=env_kwargs,
                  argv=argv, log=log, device=device, init=init,
                  init_new_observation=init_new_observation,
                  trust_pickle=trust_pickle)  # fmt: skip
     try:
         try:
-            learn(run, progress=progress, log=log, max_minutes=max_minutes)
+            learn(run, progress=progress, log=log, max_minutes=max_minutes, on_eval=on_eval)
         finally:
             if run.started is not None:  # saved however learning ended
                 save(run)
@@ -336,7 +338,9 @@ def _warm_start(run: Run, settings: Pretraining, log: Callable[[str], None],
 
 
 def learn(run: Run, *, progress: bool = True, log: Callable[[str], None] = print,
-          max_minutes: float | None = None) -> None:  # fmt: skip
+          max_minutes: float | None = None,
+          on_eval: Callable[[int, dict[str, dict[str, float]]], None] | None = None,
+          ) -> None:  # fmt: skip
     """Train the model of ``run`` for its ``n_timesteps``, with the logger (``progress.csv``,
     ``tb/``) and callbacks of a run, until the steps are done, ``max_minutes`` have passed
     or Ctrl-C or SIGTERM stops it (``run.interrupted``)."""
@@ -354,7 +358,8 @@ def learn(run: Run, *, progress: bool = True, log: Callable[[str], None] = print
     if config.eval_freq > 0:
         callbacks.append(PeriodicEvalCallback(out, run.eval_ids, config.eval_freq,
                                               config.eval_episodes, log, progress,
-                                              env_kwargs=run.eval_kwargs))  # fmt: skip
+                                              env_kwargs=run.eval_kwargs,
+                                              on_eval=on_eval))  # fmt: skip
     run.limit = None if max_minutes is None else WallClockLimit(60.0 * max_minutes)
     if run.limit is not None:
         callbacks.append(run.limit)
