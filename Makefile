@@ -24,7 +24,7 @@ $(DEMO_STAMP): pyproject.toml | $(VENV)/bin/python
 
 $(STAMP): pyproject.toml | $(VENV)/bin/python
 	$(BIN)/python -m pip install --quiet "$(TORCH)"
-	$(BIN)/python -m pip install --quiet -e ".[train,plot,dev,docs]"
+	$(BIN)/python -m pip install --quiet -e ".[train,plot,dev,docs,ray]"
 	touch $(DEMO_STAMP) $(STAMP)
 
 demo: $(DEMO_STAMP)

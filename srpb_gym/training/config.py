@@ -53,10 +53,10 @@ FIXED_KEYS = {
     "norm_reward": "normalize: true normalises observations and rewards (the reward "
                    "unclipped); normalize: false neither",
 }  # fmt: skip
-#: the keys passed to ``stable_baselines3.PPO`` as they are
 DEFAULT_VALIDATION_EPISODES = 20
 """Episodes per environment on the validation seeds that choose among Ray Tune trials
 (``srpb-gym train --backend ray --validation-episodes``)."""
+#: the keys passed to ``stable_baselines3.PPO`` as they are
 PPO_KEYS = ("learning_rate", "n_steps", "batch_size", "n_epochs", "gamma", "gae_lambda",
             "clip_range", "ent_coef", "vf_coef", "max_grad_norm")  # fmt: skip
 

@@ -129,6 +129,7 @@ def run_sweep(sweep: SweepSpec, seeds: Sequence[int], grid: Mapping[str, Any],
                                         {"cpu": max(t["cpus"] for t in trials)})  # fmt: skip
         tuner = tune.Tuner(
             trainable, param_space={"trial": tune.grid_search(trials)},
+            tune_config=tune.TuneConfig(trial_dirname_creator=_trial_folder),
             run_config=tune.RunConfig(storage_path=os.path.join(out, "tune"), name="trials",
                                       verbose=0),
         )  # fmt: skip
@@ -138,6 +139,10 @@ def run_sweep(sweep: SweepSpec, seeds: Sequence[int], grid: Mapping[str, Any],
         if started:
             ray.shutdown()
     return _summarise(out, trials, grid_result, log)
+
+
+def _trial_folder(trial: Any) -> str:
+    return str(trial.config["trial"]["name"])
 
 
 def _trial(sweep: SweepSpec, trial: Mapping[str, Any]) -> None:

@@ -20,7 +20,7 @@ from srpb_gym.evaluation.ray_pool import CRASH_ONCE
 from tests.helpers import error_line
 
 ENV = "SRPB-Corridor-v0"
-ARGS = ["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "4", "--warmup", "0"]
+ARGS = ["eval", "--env", ENV, "--planner", "go-to-goal", "--episodes", "3", "--warmup", "0"]
 TIMING = {"m_cef", "m_cre", "gt_m_cef", "gt_m_cre"}
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -61,7 +61,7 @@ def test_ray_runs_the_pools_episodes_and_reruns_a_dead_workers_one(
     assert main([*ARGS, "--workers", "2", "--backend", "ray", "--out", str(out)]) == 0
     assert marker.exists()
     got = rows(out)
-    assert len({(r["env"], r["planner"], r["seed"]) for r in got}) == len(got) == 4
+    assert len({(r["env"], r["planner"], r["seed"]) for r in got}) == len(got) == 3
     assert got == rows(pool_run)
     assert files(out) == files(pool_run)
     names = {p.name for p in out.iterdir()}
@@ -86,13 +86,13 @@ def test_ray_interrupted_keeps_what_finished_and_resumes(
     monkeypatch.setattr(harness, "_record", record_then_interrupt)
     # Ctrl-C as a terminal delivers it (a SIGINT left ignored, as under nohup, is kept so)
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    config = resolve_config([ENV], ["go-to-goal"], episodes=4, warmup=0, out=str(out),
+    config = resolve_config([ENV], ["go-to-goal"], episodes=3, warmup=0, out=str(out),
                             workers=1, backend="ray", log=None)  # fmt: skip
     try:
         outcome = run_evaluation(config, progress=False)
     finally:
         signal.signal(signal.SIGINT, previous)
-    assert outcome.interrupted and 1 <= outcome.finished < 4, outcome.finished
+    assert outcome.interrupted and 1 <= outcome.finished < 3, outcome.finished
     monkeypatch.setattr(harness, "_record", record)
     assert main([*ARGS, "--workers", "2", "--backend", "ray", "--out", str(out), "--resume"]) == 0
     assert rows(out) == rows(pool_run)
@@ -114,7 +114,7 @@ def test_import_and_a_plain_eval_never_load_ray(tmp_path):
         "assert 'ray' not in sys.modules\n"
         "from srpb_gym.cli import main\n"
         f"assert main(['eval', '--env', '{ENV}', '--planner', 'go-to-goal', '--episodes', "
-        f"'2', '--workers', '2', '--warmup', '0', '--out', {str(tmp_path / 'run')!r}]) == 0\n"
+        f"'1', '--warmup', '0', '--out', {str(tmp_path / 'run')!r}]) == 0\n"
         "assert 'ray' not in sys.modules, 'ray was imported'\n"
     )
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
