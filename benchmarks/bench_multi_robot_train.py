@@ -1,7 +1,9 @@
 """Training throughput of the two shared-policy multi-robot recipes side by side, in one
 run: stable-baselines3 PPO on ``SharedPolicyVecEnv`` (``training/multi_robot.py``) and
 RLlib PPO on ``ParallelPettingZooEnv`` (``training/rllib_multi_robot.py``), on the same
-scenario and robots, with the same batch (robot-steps per update) and PPO epochs.
+scenario and robots, with the same PPO update: the SB3 recipe's rollout of 2048
+robot-steps (1024 per robot slot with one environment of 2 robots), minibatches of 64 and
+10 epochs; RLlib's batch counts environment steps, ``--batch`` 1024 of 2 robots.
 
     python benchmarks/bench_multi_robot_train.py [--scenario corridor] [--robots 2] \\
         [--steps 4096] [--env-runners 1]
@@ -35,11 +37,12 @@ def main() -> None:
     ap.add_argument("--scenario", default="corridor")
     ap.add_argument("--robots", type=int, default=2)
     ap.add_argument("--steps", type=int, default=4096, help="robot-steps per recipe")
-    ap.add_argument("--batch", type=int, default=1024, help="robot-steps per update")
+    ap.add_argument("--batch", type=int, default=1024,
+                    help="RLlib: environment steps per update")  # fmt: skip
     ap.add_argument("--env-runners", type=int, default=1)
     args = ap.parse_args()
-    print(f"{args.scenario}, {args.robots} robots, {args.steps} robot-steps, batch "
-          f"{args.batch}; {os.cpu_count()} CPU cores; load average "
+    print(f"{args.scenario}, {args.robots} robots, {args.steps} robot-steps, RLlib batch "
+          f"{args.batch} env steps; {os.cpu_count()} CPU cores; load average "
           f"{os.getloadavg()[0]:.2f}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         started = time.perf_counter()
@@ -55,7 +58,7 @@ def main() -> None:
         ray.init(num_cpus=os.cpu_count(), include_dashboard=False, log_to_driver=False,
                  configure_logging=False)  # fmt: skip
         try:
-            iterations = max(1, round(args.steps / args.batch))
+            iterations = max(1, round(args.steps / (args.batch * args.robots)))
             record = rllib_multi_robot.train(
                 args.scenario, args.robots, args.env_runners, 1, iterations,
                 os.path.join(tmp, "rllib"), batch=args.batch, minibatch=64, epochs=10,

@@ -4,8 +4,10 @@ local workers, in one run, and Ray's overhead per episode.
 Each configuration runs the same episodes (``--episodes`` seeds of every ``--planner`` on
 ``--env``) through ``srpb_gym.evaluation.run_evaluation`` into a fresh folder, timed from
 the call to its return: worker start, warm-up, episodes, tables and figures, as
-``srpb-gym eval`` spends them. Ray is started once (``ray.init(num_cpus=W)``, timed
-apart) and its worker processes start inside the first timed run, as the pool's do:
+``srpb-gym eval`` spends them, after an untimed one-episode run that pays this process's
+one-time costs (imports, loading the compiled kernels, plotting). Ray is started once
+(``ray.init(num_cpus=W)``, timed apart) and its worker processes start inside the timed
+run, as the pool's do:
 
     python benchmarks/bench_ray.py [--env SRPB-Corridor-v0] [--planner dwa] \\
         [--episodes 16] [--workers 1 2]
@@ -50,6 +52,8 @@ def main() -> None:
     print(f"{'workers':>7}  {'pool s':>8}  {'pool ep/s':>9}  {'ray s':>8}  {'ray ep/s':>9}  "
           f"{'overhead/episode':>16}")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
+        # untimed: this process's one-time costs (imports, compiled kernels, plotting)
+        timed_run(args.env, args.planner, 1, 1, "process", os.path.join(tmp, "warm"))
         for w in args.workers:
             pool = timed_run(args.env, args.planner, args.episodes, w, "process",
                              os.path.join(tmp, f"pool{w}"))  # fmt: skip
