@@ -22,6 +22,7 @@ folder that every node sees at the same path (a shared file system).
 from __future__ import annotations
 
 import csv
+import dataclasses
 import itertools
 import json
 import math
@@ -120,7 +121,7 @@ def run_sweep(sweep: SweepSpec, seeds: Sequence[int], grid: Mapping[str, Any],
     docstring); returns them, the best chosen on the validation seeds."""
     trials = plan(sweep, seeds, grid)
     out = os.path.abspath(check_out_dir(sweep.out))
-    sweep = SweepSpec(**{**sweep.__dict__, "out": out})
+    sweep = dataclasses.replace(sweep, out=out)
     ray, started = connect(address)
     try:
         from ray import tune
