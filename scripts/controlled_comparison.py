@@ -178,6 +178,14 @@ def _num(value: float | None, fmt: str = ".3g") -> str:
     return "n/a" if value is None or not np.isfinite(value) else format(value, fmt)
 
 
+def _signed(value: float, unit: str = "") -> str:
+    return "n/a" if not np.isfinite(value) else f"{value:+.1f}{unit}"
+
+
+def _interval(ci: list[float]) -> str:
+    return "n/a" if not all(np.isfinite(ci)) else f"[{ci[0]:+.1f}, {ci[1]:+.1f}]"
+
+
 def markdown(report: dict[str, Any]) -> str:
     na, nb = report["names"]
     lines = [f"{report['episodes']} episodes, seeds {report['seeds'][0]}-{report['seeds'][1]}; "
@@ -196,7 +204,7 @@ def markdown(report: dict[str, Any]) -> str:
     for p in report["pairs"]:
         e = p["m_psi_gt"]
         lines.append(f"| {p['b']} vs {p['a']} | {p['success']:+.1f} pt | {p['p_success']:.3g} "
-                     f"| {e['effect']:+.1f} % [{e['ci'][0]:+.1f}, {e['ci'][1]:+.1f}] | "
+                     f"| {_signed(e['effect'], ' %')} {_interval(e['ci'])} | "
                      f"{_num(e['p'])} |")  # fmt: skip
     lines += ["", f"Pooled over the training seeds ({nb} against {na}, episode values averaged "
               "over the seeds):", "", "| figure | A | B | B against A | 95 % interval | "
@@ -207,7 +215,7 @@ def markdown(report: dict[str, Any]) -> str:
         else:
             label, scale, unit = f"mean GT {metric}", 1.0, " %"
         lines.append(f"| {label} | {_num(scale * e['a'])} | {_num(scale * e['b'])} | "
-                     f"{e['effect']:+.1f}{unit} | [{e['ci'][0]:+.1f}, {e['ci'][1]:+.1f}] | "
+                     f"{_signed(e['effect'], unit)} | {_interval(e['ci'])} | "
                      f"{_num(e['p'])} | {e['n']} |")  # fmt: skip
     return "\n".join(lines) + "\n"
 

@@ -42,7 +42,10 @@ def test_effects_by_hand():
     assert report["pairs"][1]["success"] == pytest.approx(-25.0)
     row = report["runs"][0]
     assert row["m_psi_gt_mean"] == 25.0 and row["m_psi_tracked_median"] == 26.0
-    assert "| -50.0 %" in cc.markdown(report)
+    text = cc.markdown(report)
+    assert "| -50.0 %" in text
+    # no O-space in these episodes: no relative change of m_fsi to report
+    assert np.isnan(pooled["m_fsi"]["effect"]) and "| mean GT m_fsi | 0 | 0 | n/a | n/a |" in text
 
 
 def test_every_pair_must_be_evaluated_on_the_same_episodes():
