@@ -14,7 +14,7 @@ import pytest
 import srpb_gym  # noqa: F401
 from srpb_gym.models import card, model_names, model_path
 from srpb_gym.training.targets import eval_env_ids
-from training.retrain_models import MODELS
+from training.retrain_models import MODELS, recipe_of
 from training.ship import _trained_weights
 
 CARD_KEYS = {
@@ -42,7 +42,7 @@ def test_model_loads_matches_spaces_and_acts(name):
 
     facts = card(name)
     assert set(facts) >= CARD_KEYS and facts["name"] == name
-    assert (facts["env"], facts["reward"]) == MODELS[name]
+    assert (facts["env"], facts["reward"]) == (recipe_of(name).env_id, MODELS[name][1])
     # trained with the weights the environment pays now (a scenario re-weighted since, or a
     # preset changed, needs the model retrained)
     assert facts["reward_weights"] == _trained_weights(facts), name
@@ -91,7 +91,7 @@ def test_eval_takes_a_short_name(name, tmp_path, capsys):
 
 
 def test_twins_differ_in_the_reward_alone():
-    from training.retrain_models import MODELS, RECIPES, train_command
+    from training.retrain_models import RECIPES, train_command
 
     def parts(cmd):
         """The command's options by name (the values after each ``--name``)."""
