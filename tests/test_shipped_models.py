@@ -134,25 +134,29 @@ def test_retraining_commands_follow_each_model_recipe(monkeypatch):
     assert hyper[-1] == "torch_threads=1"
     kwargs = train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")]
     assert kwargs == ["observation={lidar_encoding: log, lidar_groups: 0.0001}",
-                      "reward_weights={psi: -2.0, fsi: -3.0, collision: -120.0}"]  # fmt: skip
+                      "reward_weights={psi: -2.0, fsi: -3.0, collision: -120.0}",
+                      "reward_people=ground_truth"]  # fmt: skip
     # the first seed's run is shipped, chosen between best/ and final on validation seeds
     assert ship[ship.index("training.ship") + 1] == train[train.index("--out") + 1]
     assert ship[ship.index("--name") + 1] == "ppo-crowd-srpb"
     assert ship[ship.index("--validate") + 1] == "100"
     assert len(commands("ppo-crowd-srpb", [0, 1], 0, ship=False)) == 2
     plain = commands("ppo-crossing-task", [0], 0)[0]
-    assert "--env-kwargs" not in plain and "torch_threads=1" not in plain
+    kwargs = plain[plain.index("--env-kwargs") + 1 : plain.index("--hyperparams")]
+    assert kwargs == ["reward_people=ground_truth"]
+    assert "--hyperparams" in plain and "torch_threads=1" not in plain
     mix = commands("ppo-mix-srpb", [0], 1)[0]
     hyper = mix[mix.index("--hyperparams") + 1 :]
     assert "pretrain_episodes=1000" in hyper
     teachers = next(h for h in hyper if h.startswith("pretrain_teachers="))
     assert teachers.startswith("pretrain_teachers={corridor: ppo-corridor-srpb, ")
     kwargs = mix[mix.index("--env-kwargs") + 1 : mix.index("--hyperparams")]
-    assert kwargs == ["observation={lidar_encoding: log}", "weights=[1, 1, 3, 2, 3]"]
-    gt = dataclasses.replace(RECIPES["crowd"], reward_people="ground_truth")
-    monkeypatch.setitem(RECIPES, "crowd", gt)
+    assert kwargs == ["observation={lidar_encoding: log}", "weights=[1, 1, 3, 2, 3]",
+                      "reward_people=ground_truth"]  # fmt: skip
+    tracked = dataclasses.replace(RECIPES["crowd"], reward_people="tracked")
+    monkeypatch.setitem(RECIPES, "crowd", tracked)
     train = commands("ppo-crowd-task", [0], 0)[0]
-    assert train[train.index("--hyperparams") - 1] == "reward_people=ground_truth"
+    assert not any(word.startswith("reward_people") for word in train)  # the env's default
 
 
 def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
