@@ -18,7 +18,7 @@ unless ``--no-ship``, the run of the first seed given is then packaged by ``pyth
 training.ship``: the better of best/ and the final model on 100 validation seeds, tested
 once on 200 test seeds (from 20,000,000: :data:`srpb_gym.seeds.TEST`) into
 ``srpb_gym/models/<name>/`` with its model card. The other seeds' runs are the controlled
-comparison (``scripts/shaping_effect.py``); no seed is chosen over another. On a 2-core
+comparison (``scripts/controlled_comparison.py``); no seed is chosen over another. On a 2-core
 machine two runs side by side (``--jobs 2``, one torch thread each) finish sooner than one
 after the other.
 
