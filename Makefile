@@ -38,11 +38,12 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check .
 
 # the documentation site, into site/ (strict: a broken link, anchor or reference fails)
+# NO_MKDOCS_2_WARNING: Material's banner about MkDocs 2 (no warning of the build's own)
 docs: $(STAMP)
-	$(BIN)/mkdocs build --strict
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
 
 docs-serve: $(STAMP)
-	$(BIN)/mkdocs serve
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs serve
 
 # the built site in headless Chromium (Debian's package, installed if missing)
 docs-check: docs
