@@ -10,6 +10,7 @@ from typing import Any
 
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.ray_pool import check_installed
+from srpb_gym.evaluation.spec import BACKENDS
 from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.training.config import DEFAULT_VALIDATION_EPISODES, parse_overrides, resolve
 from srpb_gym.training.run_folder import default_out
@@ -71,7 +72,7 @@ def add_train_command(subparsers: Any) -> None:
         "each trial is one run folder <out>/<trial>, as a single run writes it; the best "
         "trial is chosen on the validation seeds (docs: training/README.md)",
     )
-    ray.add_argument("--backend", choices=("process", "ray"), default="process",
+    ray.add_argument("--backend", choices=BACKENDS, default="process",
                      help="process: one run here (default); ray: --seeds x --grid as Ray "
                      "Tune trials (pip install \"srpb-gym[ray]\")")  # fmt: skip
     ray.add_argument("--seeds", type=int, nargs="+", metavar="S",
