@@ -88,6 +88,15 @@ def test_train_then_evaluate(tmp_path, capsys):
     (["--scenario", "crowd", "--robots", "9"],
      "--robots: scenario 'crowd' has places for at most 8 robots, got 9"),
     (["--reward", "bogus"], "--reward: unknown reward preset 'bogus'; choose one of: "),
+    (["--hyperparams", "n_envs=3"], "--hyperparams: n_envs is not used by this recipe"),
+    (["--hyperparams", "n_epochs=0"], "--hyperparams: n_epochs: "),
+    (["--env-kwargs", "n_robots=2"], "--env-kwargs: n_robots is set by --robots"),
+    (["--env-kwargs", "reward_people=nobody"], "--env-kwargs: "),
+    (["--save-every", "-1"], "--save-every: must be at least 0, got -1"),
+    (["--init", "no-such-model"], "--init: "),
+    # a model that observed otherwise: refused after the folder was made, which goes again
+    (["--scenario", "corridor", "--robots", "2", "--init", "ppo-crowd-srpb"],
+     "--init: "),
 ])  # fmt: skip
 def test_bad_arguments_leave_nothing_behind(tmp_path, capsys, argv, message):
     from training import multi_robot
@@ -111,3 +120,26 @@ def test_an_existing_run_is_never_overwritten(tmp_path, capsys):
     assert err.startswith(f"training.multi_robot: error: --out: {out} is not empty (holds "
                           "model.zip); choose a new or empty folder")  # fmt: skip
     assert (out / "model.zip").read_text() == "a model trained before"
+
+
+def test_init_starts_every_robot_from_a_single_robot_model(tmp_path, monkeypatch):
+    """Without PPO's updates the shared policy keeps the single-robot model's weights."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.save_util import load_from_zip_file
+
+    from srpb_gym.models import model_path
+    from training import multi_robot
+
+    monkeypatch.setattr(PPO, "train", lambda self: None)  # rollouts collected, no update
+    out = tmp_path / "run"
+    multi_robot.train("corridor", 2, 1, 64, str(out), reward="task", init="ppo-corridor-task",
+                      hyperparams={"n_steps": 32, "batch_size": 64},
+                      log=lambda line: None)  # fmt: skip
+    trained = load_from_zip_file(out / "model.zip", device="cpu")[1]["policy"]
+    start = load_from_zip_file(model_path("ppo-corridor-task"), device="cpu")[1]["policy"]
+    assert trained.keys() == start.keys()
+    for key, tensor in start.items():
+        assert (trained[key] == tensor).all(), key
+    record = json.loads((out / "run.json").read_text())
+    assert record["init"]["model"] == str(model_path("ppo-corridor-task"))
+    assert record["hyperparams"]["n_steps"] == 32 and record["steps"] == 64
