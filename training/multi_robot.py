@@ -29,6 +29,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 import time
 from collections.abc import Mapping, Sequence
@@ -138,7 +139,7 @@ def train(
               "reward": reward, "env_kwargs": dict(env_kwargs or {}),
               "hyperparams": {k: v for k, v in config.as_dict().items() if k in USED_KEYS},
               "init": started_from, "wall_time_s": time.perf_counter() - started,
-              "command": " ".join(sys.argv)}  # fmt: skip
+              "command": shlex.join(["python", "-m", PROG, *sys.argv[1:]])}  # fmt: skip
     (folder / "run.json").write_text(json.dumps(record, indent=1) + "\n")
     return folder
 

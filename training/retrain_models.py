@@ -23,8 +23,10 @@ machine two runs side by side (``--jobs 2``, one torch thread each) finish soone
 after the other.
 
 The generalist (``mix``) is warm-started from a specialist per scenario
-(:attr:`Recipe.teachers`): they are retrained first when named too (or when all models
-are), otherwise the shipped ones teach. Why each recipe is as it is: docs/notes/.
+(:attr:`Recipe.teachers`), and the policy shared by 3 robots in crowd
+(:data:`MULTI_RECIPES`, ``ppo-crowd-srpb-3robots``) starts from the crowd specialist: those
+are retrained first when named too (or when all models are), otherwise the shipped ones
+teach. Why each recipe is as it is: docs/notes/.
 """
 
 from __future__ import annotations
@@ -135,6 +137,68 @@ MODELS: dict[str, tuple[str, str]] = {
 }
 
 
+@dataclass(frozen=True)
+class MultiRecipe:
+    """How a policy shared by several robots is trained (``python -m training.multi_robot``)
+    and shipped (``python -m training.ship_multi``): ``robots`` robots in each of ``envs``
+    multi-robot environments of ``scenario``, ``steps`` robot-steps, started from the
+    shipped single-robot model ``init`` (which it observes and is paid as: the env kwargs
+    of its recipe), ``hyperparams`` for ``--hyperparams``."""
+
+    scenario: str
+    robots: int
+    envs: int
+    steps: int
+    init: str
+    hyperparams: tuple[str, ...] = ()
+
+
+#: the shared policies for several robots, by name (``ppo-<scenario>-<preset>-<N>robots``)
+MULTI_RECIPES: dict[str, MultiRecipe] = {
+    # fine-tuned from the crowd specialist with its own PPO settings, among 2 other robots
+    "ppo-crowd-srpb-3robots": MultiRecipe(
+        "crowd", 3, 2, 1_000_000, "ppo-crowd-srpb",
+        ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
+    ),
+}  # fmt: skip
+
+
+def teachers_of(name: str) -> tuple[tuple[str, str], ...]:
+    """The (scenario, model) pairs model ``name`` starts from: the teachers of its warm
+    start, or a multi-robot policy's initial model."""
+    if name in MULTI_RECIPES:
+        return ((MULTI_RECIPES[name].scenario, MULTI_RECIPES[name].init),)
+    return recipe_of(name).teachers
+
+
+def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
+                   root: str = "runs/train") -> list[list[str]]:  # fmt: skip
+    """The commands that retrain the multi-robot policy ``name``: a run per seed and, with
+    ``ship``, ``training.ship_multi`` of the first seed's run."""
+    multi = MULTI_RECIPES[name]
+    single = MODELS[multi.init]
+    preset = single[1]
+    recipe = RECIPES[single[0]]
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
+    kwargs = [f"observation={recipe.observation}"] if recipe.observation else []
+    weights = reward_kwarg(recipe, preset)
+    kwargs += [weights] if weights else []
+    if recipe.reward_people != "tracked":
+        kwargs.append(f"reward_people={recipe.reward_people}")
+    hyper = [*multi.hyperparams, *([f"torch_threads={threads}"] if threads else [])]
+    out = [[sys.executable, "-m", "training.multi_robot", "--scenario", multi.scenario,
+            "--robots", str(multi.robots), "--envs", str(multi.envs), "--steps",
+            str(multi.steps), "--reward", preset, "--seed", str(seed), "--init", multi.init,
+            "--save-every", "100000", "--out", run,
+            *(["--env-kwargs", *kwargs] if kwargs else []),
+            *(["--hyperparams", *hyper] if hyper else [])]
+           for seed, run in zip(seeds, runs)]  # fmt: skip
+    if ship:
+        out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name])
+    return out
+
+
 def recipe_of(name: str) -> Recipe:
     """The recipe of model ``name``."""
     return RECIPES[MODELS[name][0]]
@@ -172,7 +236,10 @@ def train_command(name: str, seed: int, out: str, threads: int) -> list[str]:
 def commands(name: str, seeds: list[int], threads: int, ship: bool = True,
              root: str = "runs/train") -> list[list[str]]:  # fmt: skip
     """The commands that retrain model ``name``: a run per seed and, with ``ship``,
-    ``training.ship`` of the first seed's run."""
+    ``training.ship`` of the first seed's run (a multi-robot policy's:
+    :func:`multi_commands`)."""
+    if name in MULTI_RECIPES:
+        return multi_commands(name, seeds, threads, ship, root)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
     out = [train_command(name, seed, run, threads) for seed, run in zip(seeds, runs)]
@@ -187,13 +254,13 @@ def waves(names: list[str], shipped: list[str]) -> list[list[str]]:
     (:attr:`Recipe.teachers`) after the rest, so that a teacher retrained too is shipped
     before its student's run starts; a teacher that is no model of this script, neither
     named nor shipped, or taught itself, is an error (:class:`ValueError`)."""
-    taught = [n for n in names if recipe_of(n).teachers]
+    taught = [n for n in names if teachers_of(n)]
     for name in taught:
-        for scenario, teacher in recipe_of(name).teachers:
+        for scenario, teacher in teachers_of(name):
             if teacher not in MODELS:
                 raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is no model of "
                                  f"this script ({', '.join(MODELS)})")  # fmt: skip
-            if recipe_of(teacher).teachers:
+            if teachers_of(teacher):
                 raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is taught too")
             if teacher not in names and teacher not in shipped:
                 raise ValueError(f"{name}: its teacher {teacher} ({scenario}) is not shipped; "
@@ -204,7 +271,8 @@ def waves(names: list[str], shipped: list[str]) -> list[list[str]]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description="retrain the shipped models and their twins")
-    parser.add_argument("names", nargs="*", metavar="NAME", help=f"of: {', '.join(MODELS)}")
+    every = [*MODELS, *MULTI_RECIPES]
+    parser.add_argument("names", nargs="*", metavar="NAME", help=f"of: {', '.join(every)}")
     parser.add_argument(
         "--seeds",
         type=int,
@@ -217,12 +285,12 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=1, help="runs side by side")
     parser.add_argument("--dry-run", action="store_true")
     args = parser.parse_args()
-    unknown = [n for n in args.names if n not in MODELS]
+    unknown = [n for n in args.names if n not in every]
     if unknown:
-        parser.error(f"unknown model {unknown[0]!r}; choose from {', '.join(MODELS)}")
+        parser.error(f"unknown model {unknown[0]!r}; choose from {', '.join(every)}")
     if len(set(args.seeds)) != len(args.seeds) or min(args.seeds) < 0:
         parser.error(f"--seeds: distinct seeds >= 0, got {args.seeds}")
-    names = args.names or list(MODELS)
+    names = args.names or every
     threads = 1 if args.jobs > 1 else 0
     try:
         order = waves(names, model_names())
@@ -232,7 +300,7 @@ def main() -> int:
     failed: set[str] = set()
 
     def one(name: str) -> int:
-        teachers = {t for _, t in recipe_of(name).teachers}
+        teachers = {t for _, t in teachers_of(name)}
         if teachers & failed:
             print(f"{name}: not retrained, its teacher {sorted(teachers & failed)[0]} failed",
                   file=sys.stderr, flush=True)  # fmt: skip

@@ -15,7 +15,8 @@ from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
 #: evaluation does not use), the time limit (evaluations run the scenario's), and what
 #: the evaluation sets itself (metric settings, records, rendering)
 TRAINING_ONLY_KWARGS = frozenset({
-    "reward", "reward_weights", "max_episode_steps", "metrics", "record_dir", "render_mode",
+    "reward", "reward_weights", "reward_people", "max_episode_steps", "metrics", "record_dir",
+    "render_mode",
 })  # fmt: skip
 #: kwargs of SRPB-Mix-v0 that change only how often each scenario is drawn in training:
 #: periodic evaluation runs each scenario of the mixture as often as the others, as the

@@ -1,0 +1,136 @@
+"""Shipping a policy shared by several robots: its figures, its card, its recipe."""
+
+from __future__ import annotations
+
+import json
+import math
+import shlex
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from srpb_gym.evaluation.data import EpisodeResult  # noqa: E402
+from srpb_gym.models import card, model_names, model_path  # noqa: E402
+from srpb_gym.sim.contact import Collision  # noqa: E402
+from training import ship_multi  # noqa: E402
+from training.retrain_models import MODELS, MULTI_RECIPES, commands, waves  # noqa: E402
+
+MULTI = [name for name in model_names() if name in MULTI_RECIPES]
+#: the metrics of a row besides m_psi (m_dir not defined in any)
+OTHER = {"m_fsi": 0.0, "m_dir": math.nan, "m_mef": 1.0}
+
+
+def row(robot: int, success: bool, hit: str = "", by: str = "robot", psi: float = 0.0,
+        gt_psi: float = 0.0) -> EpisodeResult:  # fmt: skip
+    first = Collision(hit, by, 0.5, 0.5, 0.5, 0.0) if hit else None
+    return EpisodeResult(env="SRPB-Crowd-v0", planner="p", seed=0, is_success=success,
+                         collision=bool(hit), timeout=not success and not hit,
+                         metrics={**OTHER, "m_psi": psi}, robot=robot,
+                         ground_truth={**OTHER, "m_psi": gt_psi},
+                         first_collision=first)  # fmt: skip
+
+
+def test_the_figures_of_robot_episodes():
+    rows = [row(0, True, psi=10.0, gt_psi=8.0), row(1, False, "robot", psi=20.0, gt_psi=4.0),
+            row(2, False, "person", "person", psi=30.0, gt_psi=6.0),
+            row(0, True, psi=40.0, gt_psi=2.0), row(1, True), row(2, False)]  # fmt: skip
+    f = ship_multi.summarize(rows)
+    assert (f["episodes"], f["robots"]) == (6, 3)
+    assert f["success"] == 3 / 6 and f["collision"] == 2 / 6 and f["timeout"] == 1 / 6
+    assert f["robot_collision"] == 1 / 6  # the first collision was with a robot
+    assert f["caused_collision"] == 1 / 6  # the person walked into robot 2
+    assert f["success_by_robot"] == [1.0, 0.5, 0.0]
+    low, high = f["success_ci"]
+    assert 0.18 < low < 0.19 and 0.81 < high < 0.82  # Wilson, 3 of 6
+    assert f["gt_m_psi"] == 3.0 and f["m_psi"] == 15.0  # medians of 0, 0, 2, 4, 6, 8 / ...
+    assert math.isnan(f["m_dir"])  # no episode has it
+
+
+def test_a_name_names_the_runs_robots():
+    assert ship_multi.check_name("ppo-crowd-srpb-3robots", 3).name == "ppo-crowd-srpb-3robots"
+    bad = (("ppo-crowd-srpb-3robots", 2), ("ppo-crowd-srpb", 3),
+           ("ppo-nowhere-srpb-3robots", 3), ("../ppo-crowd-srpb-3robots", 3))  # fmt: skip
+    for name, robots in bad:
+        with pytest.raises(ValueError, match="--name: "):
+            ship_multi.check_name(name, robots)
+
+
+def test_ship_packages_a_run_whose_card_command_reproduces_it(tmp_path, monkeypatch, capsys):
+    from srpb_gym.cli import main as cli_main
+    from srpb_gym.evaluation.stats import read_episodes
+    from training import multi_robot
+
+    run = tmp_path / "run"
+    multi_robot.train("corridor", 2, 1, 64, str(run), reward="task",
+                      hyperparams={"n_steps": 32, "batch_size": 64},
+                      env_kwargs={"reward_people": "ground_truth"},
+                      log=lambda line: None)  # fmt: skip
+    monkeypatch.setattr(ship_multi, "MODELS_DIR", tmp_path / "models")
+    facts = ship_multi.ship(run, "ppo-corridor-task-2robots", episodes=2, seed=7,
+                            baselines=["dwa"])  # fmt: skip
+    target = tmp_path / "models" / "ppo-corridor-task-2robots"
+    assert {p.name for p in target.iterdir()} == {"model.zip", "vecnormalize.npz", "card.json",
+                                                  "card.md"}  # fmt: skip
+    assert json.loads((target / "card.json").read_text()) == json.loads(json.dumps(facts))
+    assert (target / "card.md").read_text() == ship_multi.card_markdown(facts["name"], facts)
+    test = facts["test"]
+    assert list(test["results"]) == ["dwa", "ppo-corridor-task-2robots"]
+    assert test["env_kwargs"] == {}  # reward_people is the reward's, not the evaluation's
+    assert facts["env_kwargs"]["reward_people"] == "ground_truth"
+    assert test["seed_range"] == "training" and test["episodes"] == 2  # seeds 7 and 8
+    # the card's command, the model by its file, gives the card's figures
+    words = shlex.split(test["command"])
+    words[words.index("--policy") + 1] = str(target / "model.zip")
+    assert words[:2] == ["srpb-gym", "eval"] and "--robots" in words
+    out = tmp_path / "again"
+    assert cli_main([*words[1:], "--out", str(out)]) == 0, capsys.readouterr().err
+    again = read_episodes(str(out / "episodes.csv"))
+    for planner, label in (("dwa", "dwa"), ("ppo-corridor-task-2robots", "model")):
+        figures = ship_multi.summarize([r for r in again if r.planner == label])
+        for key in ("success", "collision", "robot_collision", "success_by_robot", "gt_m_psi"):
+            assert figures[key] == test["results"][planner][key], (planner, key)
+
+
+def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
+    name = "ppo-crowd-srpb-3robots"
+    train, ship = commands(name, [4], 1, root="runs/x")
+    assert train[1:3] == ["-m", "training.multi_robot"] and ship[1:3] == [
+        "-m",
+        "training.ship_multi",
+    ]
+    assert train[train.index("--init") + 1] == "ppo-crowd-srpb" and "--seed" in train
+    crowd = commands("ppo-crowd-srpb", [4], 1, ship=False)[0]
+    kwargs = crowd[crowd.index("--env-kwargs") + 1 : crowd.index("--hyperparams")]
+    assert train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")] == kwargs
+    assert waves([name, "ppo-crowd-srpb"], []) == [["ppo-crowd-srpb"], [name]]
+    assert waves([name], ["ppo-crowd-srpb"]) == [[name]]
+    with pytest.raises(ValueError, match=r"its teacher ppo-crowd-srpb \(crowd\) is not shipped"):
+        waves([name], [])
+    assert MULTI_RECIPES[name].init in MODELS
+
+
+@pytest.mark.parametrize("name", MULTI)
+def test_a_shipped_multi_robot_model_acts_for_every_robot(name):
+    import srpb_gym
+    from srpb_gym.planners.learned import LearnedPolicy
+    from srpb_gym.registration import SCENARIO_IDS
+
+    facts = card(name)
+    target = model_path(name)
+    assert target is not None
+    assert (target.parent / "card.md").read_text() == ship_multi.card_markdown(name, facts)
+    policy = LearnedPolicy(target, vecnormalize=str(target.parent / "vecnormalize.npz"))
+    kwargs = {k: v for k, v in facts["env_kwargs"].items() if k == "observation"}
+    par = srpb_gym.parallel_env(scenario=SCENARIO_IDS[facts["env"]], n_robots=facts["robots"],
+                                **kwargs)  # fmt: skip
+    obs, _ = par.reset(seed=0)
+    for _ in range(5):
+        actions = {a: policy.act(obs[a], par.knowledge(a)) for a in par.agents}
+        assert all(par.action_space(a).contains(v) for a, v in actions.items())
+        obs, *_ = par.step(actions)
+    par.close()
