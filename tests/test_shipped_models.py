@@ -509,3 +509,29 @@ def test_the_card_text_is_the_card_data_and_its_hyperparameters_retrain(name):
     resolved = {k: list(v) if isinstance(v, tuple) else v
                 for k, v in dataclasses.asdict(config).items() if k in hyper}  # fmt: skip
     assert resolved == hyper
+
+
+def test_the_card_reports_the_true_people_beside_the_tracked():
+    import math
+
+    from srpb_gym.evaluation.data import EpisodeResult
+    from srpb_gym.sim.contact import Collision
+    from srpb_gym.training.callbacks import EVAL_METRICS, summarize_results
+    from training.ship import _truth_table, with_truth
+
+    def row(psi, gt_psi, hit=""):
+        metrics = dict.fromkeys(EVAL_METRICS, 1.0)
+        first = Collision("person", hit, 0.5, 0.5, 0.5, 0.0) if hit else None
+        return EpisodeResult(env="SRPB-Crowd-v0", planner="p", seed=0, is_success=not hit,
+                             collision=bool(hit), timeout=False,
+                             metrics={**metrics, "m_psi": psi},
+                             ground_truth={**metrics, "m_psi": gt_psi, "m_dir": math.nan},
+                             first_collision=first)  # fmt: skip
+
+    rows = [row(10.0, 20.0), row(30.0, 40.0, "robot"), row(50.0, 60.0, "person"), row(0, 0)]
+    f = with_truth(summarize_results(rows), rows)["SRPB-Crowd-v0"]
+    assert (f["m_psi"], f["gt_m_psi"]) == (20.0, 30.0)  # medians of each
+    assert math.isnan(f["gt_m_dir"]) and f["m_dir"] == 1.0
+    assert f["collision"] == 0.5 and f["caused_collision"] == 0.25  # the person hit the other
+    table = _truth_table({"SRPB-Crowd-v0": f})
+    assert table[-1].startswith("| SRPB-Crowd-v0 | 50.0% | 50.0% (25.0%) | 0.0% | 30 / 20 |")
