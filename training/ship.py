@@ -292,10 +292,13 @@ def _wall_time(training: dict[str, Any]) -> str:
     ppo = training["wall_time_s"] / 60
     warm = training.get("warm_start")
     stopped = ", stopped by hand (Ctrl-C or SIGTERM)" if training.get("interrupted") else ""
+    runs = training.get("side_by_side", 1)
+    shared = (f"; {runs} runs side by side on the machine's cores, the time of one run alone "
+              "not measured" if runs > 1 else "")  # fmt: skip
     if not warm:
-        return f"{ppo:.1f} min{stopped}"
+        return f"{ppo:.1f} min{stopped}{shared}"
     pre = warm["wall_time_s"] / 60
-    return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO{stopped})"
+    return f"{ppo + pre:.1f} min ({pre:.1f} min warm start, {ppo:.1f} min PPO{stopped}){shared}"
 
 
 def _init(init: dict[str, Any] | None) -> dict[str, Any] | None:
@@ -418,11 +421,13 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
 def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
          validate: int = 0, workers: int = 1, candidates: int = 1,
          validation_seed: int = VALIDATION_SEED, trust_pickle: bool = False,
-         ) -> dict[str, Any]:  # fmt: skip
+         side_by_side: int = 1) -> dict[str, Any]:  # fmt: skip
     """Package ``run`` as model ``name`` (see the module docstring): its test figures on
     ``episodes`` seeds from ``seed``, computed once, here; ``candidates``: the runs
     trained for this slot, which the card states; ``trust_pickle``: a run whose statistics
-    are a pickle is read and its statistics converted."""
+    are a pickle is read and its statistics converted; ``side_by_side``: the runs that
+    shared the machine while it trained (its wall time is then not that of a run alone),
+    which the card states."""
     target = check_name(name)
     if final and validate:
         raise ValueError("final and validate exclude each other")
@@ -471,7 +476,8 @@ def ship(run: Path, name: str, episodes: int, seed: int, final: bool,
                      "command": (run / "command.txt").read_text(encoding="utf-8").strip(),
                      "time_limit_reached": info.get("time_limit_reached", False),
                      "interrupted": info.get("interrupted", False),
-                     "warm_start": info.get("warm_start"), "init": _init(info.get("init"))},
+                     "warm_start": info.get("warm_start"), "init": _init(info.get("init")),
+                     "side_by_side": side_by_side},
         "test": {"episodes": episodes, "seed": seed, "seed_range": _range_name(seed, episodes),
                  "candidates": candidates, "envs": env_ids, "env_kwargs": env_kwargs,
                  "warmup": TEST_WARMUP, "results": results, "machine": cpu()},
@@ -510,6 +516,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--workers", type=int, default=1, metavar="N",
                         help="evaluation processes (default: 1; the same figures but for "
                         "the computation times m_cef and m_cre)")  # fmt: skip
+    parser.add_argument("--side-by-side", type=int, default=1, metavar="N",
+                        help="the run trained beside N-1 others on the same machine: the "
+                        "card says so (its wall time is not that of a run alone)")  # fmt: skip
     parser.add_argument("--trust-pickle", action="store_true",
                         help="read a run's pickled statistics (vecnormalize.pkl, from "
                         "before srpb-gym kept them as numbers) and ship them "
@@ -521,6 +530,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--workers must be at least 1, got {args.workers}")
     if args.candidates is None:
         parser.error("--candidates N is required: the candidate runs trained for this slot")
+    if args.side_by_side < 1:
+        parser.error(f"--side-by-side must be at least 1 (the run), got {args.side_by_side}")
     if args.candidates < 1:
         parser.error(f"--candidates must be at least 1 (the run shipped), got {args.candidates}")
     if args.validate:
@@ -539,7 +550,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         card = ship(args.run, args.name, args.episodes, args.seed, args.final, args.validate,
                     args.workers, args.candidates, args.validation_seed,
-                    args.trust_pickle)  # fmt: skip
+                    args.trust_pickle, args.side_by_side)  # fmt: skip
     except InputError as exc:
         print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2
