@@ -176,16 +176,10 @@ def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
     """The commands that retrain the multi-robot policy ``name``: a run per seed and, with
     ``ship``, ``training.ship_multi`` of the first seed's run."""
     multi = MULTI_RECIPES[name]
-    single = MODELS[multi.init]
-    preset = single[1]
-    recipe = RECIPES[single[0]]
+    scenario, preset = MODELS[multi.init]
+    kwargs = env_kwargs_of(RECIPES[scenario], preset)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
-    kwargs = [f"observation={recipe.observation}"] if recipe.observation else []
-    weights = reward_kwarg(recipe, preset)
-    kwargs += [weights] if weights else []
-    if recipe.reward_people != "tracked":
-        kwargs.append(f"reward_people={recipe.reward_people}")
     hyper = [*multi.hyperparams, *([f"torch_threads={threads}"] if threads else [])]
     out = [[sys.executable, "-m", "training.multi_robot", "--scenario", multi.scenario,
             "--robots", str(multi.robots), "--envs", str(multi.envs), "--steps",
@@ -212,16 +206,23 @@ def reward_kwarg(recipe: Recipe, preset: str) -> str | None:
     return f"reward_weights={{{', '.join(items)}}}" if items else None
 
 
-def train_command(name: str, seed: int, out: str, threads: int) -> list[str]:
-    """``srpb-gym train`` of model ``name`` with ``seed`` into ``out``."""
-    _, preset = MODELS[name]
-    recipe = recipe_of(name)
+def env_kwargs_of(recipe: Recipe, preset: str) -> list[str]:
+    """The ``--env-kwargs`` of the recipe's ``preset`` model: its observation, its other env
+    kwargs, its reward weights and whose people its reward sees."""
     kwargs = [f"observation={recipe.observation}"] if recipe.observation else []
     kwargs += [*recipe.env_kwargs]
     weights = reward_kwarg(recipe, preset)
     kwargs += [weights] if weights else []
     if recipe.reward_people != "tracked":  # the environment's default
         kwargs.append(f"reward_people={recipe.reward_people}")
+    return kwargs
+
+
+def train_command(name: str, seed: int, out: str, threads: int) -> list[str]:
+    """``srpb-gym train`` of model ``name`` with ``seed`` into ``out``."""
+    _, preset = MODELS[name]
+    recipe = recipe_of(name)
+    kwargs = env_kwargs_of(recipe, preset)
     hyperparams = [*recipe.hyperparams]
     if recipe.teachers:
         pairs = ", ".join(f"{scenario}: {teacher}" for scenario, teacher in recipe.teachers)
