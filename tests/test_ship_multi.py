@@ -80,6 +80,13 @@ def test_ship_packages_a_run_whose_card_command_reproduces_it(tmp_path, monkeypa
     assert (target / "card.md").read_text() == ship_multi.card_markdown(facts["name"], facts)
     test = facts["test"]
     assert list(test["results"]) == ["dwa", "ppo-corridor-task-2robots"]
+    # a test evaluation that stopped half way continues (here: every episode was done)
+    rows = (run / "test" / "episodes.csv").read_text().splitlines()
+    (run / "test" / "episodes.csv").write_text("\n".join(rows[:3]) + "\n")  # 1 episode of 4
+    again = ship_multi.ship(run, "ppo-corridor-task-2robots", episodes=2, seed=7,
+                            baselines=["dwa"], resume=True)  # fmt: skip
+    assert again["test"]["results"] == test["results"]
+    assert len((run / "test" / "episodes.csv").read_text().splitlines()) == 1 + 4 * 2
     assert test["env_kwargs"] == {}  # reward_people is the reward's, not the evaluation's
     assert facts["env_kwargs"]["reward_people"] == "ground_truth"
     assert test["seed_range"] == "training" and test["episodes"] == 2  # seeds 7 and 8

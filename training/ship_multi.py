@@ -13,6 +13,9 @@ Wilson intervals, the robots that hit another robot, each robot's success, and t
 median SRPB metrics from the true people and from the tracked ones. The card names the
 ``srpb-gym eval`` command that reproduces its figures.
 
+``--workers N`` spreads the episodes over N processes; ``--resume`` continues a test
+evaluation that was interrupted (Ctrl-C keeps its finished episodes in ``RUN/test``).
+
 ``--name`` must have the form ``ppo-<scenario>-<preset>-<N>robots`` (:func:`check_name`),
 N the run's robots: the folder of that name in ``srpb_gym/models`` is replaced, and
 nothing outside it.
@@ -97,15 +100,18 @@ def summarize(rows: Sequence[Any]) -> dict[str, Any]:
 
 def evaluate(run: Path, name: str, robots: int, env_id: str, env_kwargs: dict[str, Any],
              episodes: int, seed: int, baselines: Sequence[str], workers: int,
-             ) -> dict[str, dict[str, Any]]:  # fmt: skip
+             resume: bool = False) -> dict[str, dict[str, Any]]:  # fmt: skip
     """The figures, by planner (the model as ``name``), of the model in ``run`` and
-    ``baselines`` on the same ``episodes`` seeds from ``seed``, N robots each."""
+    ``baselines`` on the same ``episodes`` seeds from ``seed``, N robots each, evaluated
+    into ``run/test`` (with ``resume``, an interrupted evaluation there continues)."""
     work = run / "test"
-    shutil.rmtree(work, ignore_errors=True)
+    resume = resume and (work / "config.json").is_file()
+    if not resume:
+        shutil.rmtree(work, ignore_errors=True)
     config = resolve_config([env_id], planners=list(baselines), policies=[str(run)],
                             episodes=episodes, seed=seed, out=str(work), workers=workers,
                             warmup=TEST_WARMUP, robots=robots, env_kwargs=env_kwargs,
-                            log=None)  # fmt: skip
+                            resume=resume, log=None)  # fmt: skip
     results = run_evaluation(config, log=lambda line: None).results
     by_planner: dict[str, list[Any]] = {}
     for r in results:
@@ -122,8 +128,10 @@ def test_command(name: str, test: dict[str, Any]) -> str:
 
 
 def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_SEED,
-         baselines: Sequence[str] = BASELINES, workers: int = 1) -> dict[str, Any]:  # fmt: skip
-    """Package ``run`` as model ``name`` (see the module docstring); returns the card."""
+         baselines: Sequence[str] = BASELINES, workers: int = 1,
+         resume: bool = False) -> dict[str, Any]:  # fmt: skip
+    """Package ``run`` as model ``name`` (see the module docstring); returns the card.
+    ``resume``: continue the interrupted test evaluation in ``run/test``."""
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
     robots, scenario = int(info["robots"]), info["scenario"]
     target = check_name(name, robots)
@@ -131,7 +139,7 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
     env_kwargs = {"reward": info["reward"], **info.get("env_kwargs", {})}
     env_ids, eval_kwargs = eval_setup(env_id, env_kwargs)
     results = evaluate(run, name, robots, env_ids[0], eval_kwargs, episodes, seed, baselines,
-                       workers)  # fmt: skip
+                       workers, resume)  # fmt: skip
     shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
     target.mkdir(parents=True)
     for file in ("model.zip", "vecnormalize.npz"):
@@ -220,13 +228,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=TEST_SEED)
     parser.add_argument("--baselines", nargs="*", default=list(BASELINES), metavar="PLANNER")
     parser.add_argument("--workers", type=int, default=1, metavar="N")
+    parser.add_argument(
+        "--resume", action="store_true", help="continue an interrupted test evaluation (RUN/test)"
+    )
     args = parser.parse_args(argv)
     try:
         if not (args.run / "run.json").is_file():
             raise ValueError(f"{args.run}: no run.json (not a run of training.multi_robot)")
         robots = json.loads((args.run / "run.json").read_text(encoding="utf-8"))["robots"]
         check_name(args.name, robots)
-        card = ship(args.run, args.name, args.episodes, args.seed, args.baselines, args.workers)
+        card = ship(args.run, args.name, args.episodes, args.seed, args.baselines, args.workers,
+                    args.resume)  # fmt: skip
     except (ValueError, KeyError) as exc:
         print(f"training.ship_multi: error: {exc}", file=sys.stderr)
         return 2
