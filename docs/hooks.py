@@ -149,14 +149,16 @@ def model_names() -> list[str]:
 def model_page(name: str) -> str:
     """A shipped model's card, its video and its learning curves."""
     card = (MODELS / name / "card.md").read_text(encoding="utf-8")
-    env_id = json.loads((MODELS / name / "card.json").read_text(encoding="utf-8"))["env"]
+    facts = json.loads((MODELS / name / "card.json").read_text(encoding="utf-8"))
+    env_id = facts["env"]
     scenario = "mix" if env_id == MIX_ID else SCENARIO_IDS.get(env_id, "")
     extra = []
     if (ROOT / "docs" / "videos" / f"{name}.gif").exists():
         where = " (in `doorway`)" if scenario == "mix" else ""
         extra += ["## One test episode", "", f"Seed 10000{where}:", "",
                   f"![{name}, seed 10000](../videos/{name}.gif)", ""]  # fmt: skip
-    if (ROOT / "docs" / "figures" / f"learning_{scenario}.png").exists():
+    curves = ROOT / "docs" / "figures" / f"learning_{scenario}.png"
+    if curves.exists() and "robots" not in facts:  # the single-robot models' curves
         extra += ["## Learning curves", "",
                   f"![learning curves, {scenario}](../figures/learning_{scenario}.png)",
                   ""]  # fmt: skip
