@@ -103,7 +103,8 @@ def test_twins_differ_in_the_reward_alone():
     def parts(cmd):
         """The command's options by name (the values after each ``--name``)."""
         out, key = {}, None
-        for word in cmd[2:]:
+        assert cmd[1:4] == ["-m", "srpb_gym", "train"]  # the venv's own, not one on PATH
+        for word in cmd[4:]:
             if word.startswith("--"):
                 key = word
                 out[key] = []
@@ -200,11 +201,11 @@ def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
 
     def trained():
         return [c[c.index("--out") + 1].split("/")[-1].rsplit("-", 3)[0] for c in ran
-                if c[1] == "train"]  # fmt: skip
+                if c[3:4] == ["train"]]  # fmt: skip
 
     def run(cmd, check):
         ran.append(cmd)
-        failing = cmd[1] == "train" and "ppo-crowd-task" in cmd[cmd.index("--out") + 1]
+        failing = cmd[3:4] == ["train"] and "ppo-crowd-task" in cmd[cmd.index("--out") + 1]
         return subprocess.CompletedProcess(cmd, 1 if failing else 0)
 
     monkeypatch.setattr(rm.subprocess, "run", run)
@@ -220,6 +221,10 @@ def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
     assert rm.main() == 0
     assert set(trained()[:2]) == {"ppo-crowd-task", "ppo-fformation-task"}
     assert trained()[2:] == ["ppo-mix-srpb"]  # the student after both teachers' wave
+    # the cards of the runs trained two at a time say so; the student trained alone
+    sides = {c[c.index("--name") + 1]: c[c.index("--side-by-side") + 1] if "--side-by-side"
+             in c else "1" for c in ran if c[1:3] == ["-m", "training.ship"]}  # fmt: skip
+    assert sides == {"ppo-crowd-task": "2", "ppo-fformation-task": "2", "ppo-mix-srpb": "1"}
 
 
 @pytest.mark.parametrize(("best", "final", "chosen"), [

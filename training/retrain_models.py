@@ -228,25 +228,29 @@ def train_command(name: str, seed: int, out: str, threads: int) -> list[str]:
         pairs = ", ".join(f"{scenario}: {teacher}" for scenario, teacher in recipe.teachers)
         hyperparams.append(f"pretrain_teachers={{{pairs}}}")
     hyperparams += [f"torch_threads={threads}"] if threads else []
-    cmd = ["srpb-gym", "train", "--env", recipe.env_id, "--reward", preset, "--seed",
-           str(seed), "--steps", str(recipe.steps), "--out", out, "--no-progress"]  # fmt: skip
+    cmd = [sys.executable, "-m", "srpb_gym", "train", "--env", recipe.env_id, "--reward",
+           preset, "--seed", str(seed), "--steps", str(recipe.steps), "--out", out,
+           "--no-progress"]  # fmt: skip
     cmd += ["--env-kwargs", *kwargs] if kwargs else []
     return cmd + (["--hyperparams", *hyperparams] if hyperparams else [])
 
 
 def commands(name: str, seeds: list[int], threads: int, ship: bool = True,
-             root: str = "runs/train") -> list[list[str]]:  # fmt: skip
+             root: str = "runs/train", side_by_side: int = 1) -> list[list[str]]:  # fmt: skip
     """The commands that retrain model ``name``: a run per seed and, with ``ship``,
     ``training.ship`` of the first seed's run (a multi-robot policy's:
-    :func:`multi_commands`)."""
+    :func:`multi_commands`); ``side_by_side``: the runs that train at once on the machine's
+    cores (``--jobs``), which the model card records beside the run's wall time."""
     if name in MULTI_RECIPES:
         return multi_commands(name, seeds, threads, ship, root)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
     out = [train_command(name, seed, run, threads) for seed, run in zip(seeds, runs)]
     if ship:
+        side = ["--side-by-side", str(side_by_side)] if side_by_side > 1 else []
         out.append([sys.executable, "-m", "training.ship", runs[0], "--name", name,
-                    "--candidates", "1", "--validate", str(recipe_of(name).validate)])  # fmt: skip
+                    "--candidates", "1", "--validate", str(recipe_of(name).validate),
+                    *side])  # fmt: skip
     return out
 
 
@@ -297,7 +301,12 @@ def main() -> int:
         order = waves(names, model_names())
     except ValueError as exc:
         parser.error(str(exc))
-    plans = {name: commands(name, args.seeds, threads, not args.no_ship) for name in names}
+    plans = {}
+    for wave in order:
+        at_once = min(max(1, args.jobs), len(wave))  # each name runs its seeds in turn
+        for name in wave:
+            plans[name] = commands(name, args.seeds, threads, not args.no_ship,
+                                   side_by_side=at_once)  # fmt: skip
     failed: set[str] = set()
 
     def one(name: str) -> int:
