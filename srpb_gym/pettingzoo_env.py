@@ -68,7 +68,9 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
     world as an obstacle: it receives zero commands from then on, so it slows to a stop
     within its acceleration limits (about 0.1 m at full speed) and stays there. At
     the scenario's time limit, or after ``max_steps`` steps, every remaining agent is
-    truncated with its metrics. The episode ends when no agent is left.
+    truncated with its metrics. The episode ends when no agent is left. For training,
+    :meth:`return_trip` sends a robot that has just reached its goal back to its start
+    (then to its goal again) with a fresh task, while the others drive on.
 
     ## Arguments
     ``scenario``, ``render_mode`` and the settings ``observation``, ``reward``,
@@ -131,6 +133,7 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         self._override: dict[str, float] = {}
         self._np_random: np.random.Generator | None = None
         self._steps, self._episode = 0, 0
+        self._trips = np.zeros(self.n_robots, dtype=np.int64)  # return trips this episode
         self._token, self._seed = uuid.uuid4().hex[:8], None
         self._renderer = None
 
@@ -166,6 +169,7 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         self.sim.reset(layout, self._np_random)
         self._steps = 0
         self._episode += 1
+        self._trips[:] = 0
         self.agents = self.possible_agents[:]
         observations, infos = {}, {}
         for agent, task in self._task.items():
@@ -215,6 +219,39 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
             self.render()
         self._last_return = time.perf_counter()
         return obs, rewards, terms, truncs, infos
+
+    def at_goal(self, agent: str) -> bool:
+        """Whether ``agent``'s robot is at its goal now (the SRPB goal rule)."""
+        if agent not in self._task:
+            raise ValueError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
+        return self._task[agent].goal_reached()
+
+    def return_trip(self, agent: str) -> tuple[Any, dict[str, Any]]:
+        """For training: ``agent``, whose robot has just reached its goal (so it left
+        ``agents``) while others drive on, turns back to where it started this episode
+        (heading there), later to its goal again, and so on. It rejoins ``agents`` with a
+        fresh task from where it stands (reward, SRPB records and metrics start at this
+        step); returns its first observation and info, as ``reset`` does. Evaluation
+        never calls it: there a robot leaves at its goal. ``ValueError`` for an agent
+        still in the episode, one that left by other than its goal, or an episode that
+        has ended."""
+        task = self._task.get(agent)
+        if task is None:
+            raise ValueError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
+        if agent in self.agents or not self.agents or not self.at_goal(agent):
+            raise ValueError(f"{agent} can start a return trip only right after reaching its "
+                             "goal, while other agents are still in the episode")  # fmt: skip
+        robot = task.robot
+        spec = self.sim.layout.robots[robot]
+        self._trips[robot] += 1
+        if self._trips[robot] % 2:  # back to the start, heading there
+            x, y = spec.start[0], spec.start[1]
+            goal = (x, y, math.atan2(y - spec.goal[1], x - spec.goal[0]))
+        else:
+            goal = tuple(spec.goal)
+        self.sim.new_goal(robot, goal)
+        self.agents = [a for a in self.possible_agents if a in self.agents or a == agent]
+        return task.reset()
 
     def set_planning_time(self, seconds: Mapping[str, float] | float) -> None:
         """Use these planner computation times for the next step instead of the measured

@@ -26,7 +26,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from srpb_gym.config import from_spec
-from srpb_gym.metrics.record import SAMPLES, EpisodeRecord
+from srpb_gym.metrics.record import SAMPLES, EpisodeRecord, R
 from srpb_gym.perception.detector import DetectorConfig, PeopleDetector
 from srpb_gym.perception.groups import seen_groups
 from srpb_gym.perception.lidar import Lidar, LidarConfig
@@ -40,6 +40,7 @@ from srpb_gym.sim.robot import RobotConfig, body_to_world, limit_commands, measu
 from srpb_gym.sim.world import World, clear_contacts
 
 OBSTACLE_DISTANCE = ("exact", "lidar")
+GOAL_FIELDS = [R["goal_x"], R["goal_y"], R["goal_yaw"]]
 
 
 @dataclass(frozen=True)
@@ -301,6 +302,16 @@ class Simulation:
         g, m = seen_groups(people, self.crowd.formation_of, min_members, self._form_counts,
                            gids, sizes, members)  # fmt: skip
         return gids[:g], sizes[:g], members[:m]
+
+    def new_goal(self, robot: int, goal: Sequence[float]) -> None:
+        """Give robot ``robot`` the goal (x, y, yaw) [m, m, rad] of a new task that starts
+        where it stands: its records keep only their last sample, as the new task's first
+        (with the new goal), so that the task's metrics and reward start there."""
+        state = self.robots[robot]
+        state.goal[:] = np.asarray(goal, dtype=np.float64)
+        for record in (state.record, state.gt_record):
+            record.keep_last()
+            record.tables[0][0, GOAL_FIELDS] = state.goal
 
     # ------------------------------------------------------------------ queries
     def goal_distance(self, robot: int = 0) -> float:

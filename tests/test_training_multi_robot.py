@@ -143,3 +143,57 @@ def test_init_starts_every_robot_from_a_single_robot_model(tmp_path, monkeypatch
     record = json.loads((out / "run.json").read_text())
     assert record["init"]["model"] == str(model_path("ppo-corridor-task"))
     assert record["hyperparams"]["n_steps"] == 32 and record["steps"] == 64
+
+
+def test_a_robot_at_its_goal_turns_back_while_the_others_drive_on():
+    venv = SharedPolicyVecEnv([make])
+    venv.seed(3)
+    venv.reset()
+    env = venv.envs[0]
+    start = env.sim.layout.robots[1].start
+    goal = env.sim.layout.robots[1].goal
+    # robot 1 stands at its goal: put the goal where it stands
+    env.sim.robots[1].goal[:] = env.sim.world.robot_pose[1]
+    obs, _, dones, infos = venv.step(np.zeros((2, 2), np.float32))
+    assert dones.tolist() == [False, True]
+    assert infos[1]["is_success"] and infos[1]["TimeLimit.truncated"] is False
+    assert "srpb/m_psi" in infos[1] and "srpb/m_psi" not in infos[0]
+    assert env.agents == ["robot_0", "robot_1"]  # the episode goes on, robot 1 in it again
+    # its new task: back to its start (where it stands: it has not moved), heading there,
+    # its record starting at this step with the new goal
+    back = env.sim.robots[1].goal
+    heading = math.atan2(start[1] - goal[1], start[0] - goal[0])
+    assert back.tolist() == [start[0], start[1], heading]
+    record = env.sim.robots[1].record
+    assert record.counts[0] == 1 and record.robot[0, 7:10].tolist() == back.tolist()
+    yaw = env.sim.world.robot_pose[1, 2]
+    assert math.isclose(obs[1][3], math.cos(heading - yaw), abs_tol=1e-6)  # the new goal's
+    assert obs[1][3] < -0.9  # it faces away from the way back
+    assert not np.array_equal(infos[1]["terminal_observation"], obs[1])
+    for _ in range(3):  # the new task pays and records from here on
+        obs, rewards, dones, infos = venv.step(np.zeros((2, 2), np.float32))
+        assert not dones.any() and np.isfinite(rewards).all()
+    assert record.counts[0] == 4
+    # at the start again: the next trip is to the goal
+    env.sim.robots[1].goal[:] = env.sim.world.robot_pose[1]
+    _, _, dones, infos = venv.step(np.zeros((2, 2), np.float32))
+    assert dones.tolist() == [False, True] and infos[1]["is_success"]
+    assert env.sim.robots[1].goal.tolist() == list(goal)
+    with pytest.raises(ValueError, match="only right after reaching its goal"):
+        env.return_trip("robot_0")
+
+
+def test_keep_last_leaves_the_last_sample_as_the_first():
+    from srpb_gym.metrics.record import EpisodeRecord
+
+    rec = EpisodeRecord()
+    for t in range(3):
+        people = np.arange(27, dtype=float).reshape(3, 9) + t
+        rec.append([t, *range(11)], [0, 1, 2], people, [7], [2], [0, 2])
+    last = [a.copy() for a in rec.latest()]
+    rec.keep_last()
+    assert rec.counts[:4].tolist() == [1, 3, 1, 2]
+    for a, b in zip(rec.latest(), last):
+        np.testing.assert_array_equal(a, b)
+    assert rec.people_sample.tolist() == [0, 0, 0] and rec.group_sample.tolist() == [0]
+    rec.validate()

@@ -1,11 +1,11 @@
 """Training one policy shared by every robot of the PettingZoo environment, with SB3.
 
 :class:`~srpb_gym.training.shared_policy.SharedPolicyVecEnv` turns K multi-robot
-environments of N robots each into an SB3 ``VecEnv`` of K x N slots, one per robot; the
-episode of an environment ends for all its robots as soon as one of them leaves (the
-others' slots are truncated, so PPO bootstraps their value). Episodes in training are then
-shorter than in evaluation (they end at the first robot's end), which an evaluation with
-``srpb-gym eval --robots N --policy model.zip`` does not share.
+environments of N robots each into an SB3 ``VecEnv`` of K x N slots, one per robot: a
+robot that reaches its goal turns back while the others drive on (a return trip); a
+collision that ends a robot's task, or the time limit, ends the episode for all its
+robots (the others' slots are truncated, so PPO bootstraps their value). An evaluation
+with ``srpb-gym eval --robots N --policy model.zip`` has no return trips.
 
     python -m training.multi_robot --scenario crowd --robots 3 --envs 2 --steps 200000 \\
         --out runs/ppo-multi

@@ -243,6 +243,26 @@ class EpisodeRecord:
             if labels is not None and ids.size and (ids.min() < 0 or ids.max() >= len(labels)):
                 raise ValueError(f"{name} must index its {len(labels)} labels")
 
+    def keep_last(self) -> None:
+        """Drop every sample but the last, which becomes sample 0 of a new episode (with its
+        people, groups and members): a robot that starts a new task where it stands."""
+        samples, rows, groups, members, p0, g0, m0 = self.counts.tolist()
+        if samples == 0:
+            raise ValueError("the record is empty")
+        if p0 < 0:  # built by from_arrays
+            p0, g0, m0 = self._sample_start(samples - 1)
+        robot, people, pint, gint, mem = self.tables
+        k, g, m = rows - p0, groups - g0, members - m0
+        robot[0] = robot[samples - 1]
+        people[:k] = people[p0:rows].copy()
+        pint[:k] = pint[p0:rows].copy()
+        pint[:k, 0] = 0
+        gint[:g] = gint[g0:groups].copy()
+        gint[:g, 0] = 0
+        gint[:g, 2] -= m0
+        mem[:m] = mem[m0:members] - p0
+        self.counts[:] = (1, k, g, m, 0, 0, 0)
+
     def latest(self) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
         """The last sample as small tables: robot (1, 12), people (k, 9), people ids (k,),
         group sizes (g,) and group members (sum of sizes,) as indices into its people."""

@@ -8,14 +8,17 @@ robot that has left keeps producing zero observations with reward 0 and ``done=F
 until every robot has left (its terminal observation is only kept when all are done), so
 those made-up transitions would enter PPO's rollout buffer.
 
-Here the episode of an environment ends for all its robots as soon as one of them leaves
-(reaches its goal or collides): that robot's slot is done as the environment says
-(terminated, or truncated at the time limit); the others are done as *truncated*
-(``info["TimeLimit.truncated"] = True`` with their ``terminal_observation``), so PPO
-bootstraps their value instead of treating the cut as an end. Every transition in the
-buffer is then a real one. The price: episodes in training are shorter than in evaluation
-(they end at the first robot's end), which an evaluation with ``srpb-gym eval --robots N
---policy model.zip`` does not share.
+Here a robot that reaches its goal ends its task (its slot is done, terminated, with its
+``terminal_observation``) and at once starts a return trip from where it stands
+(:meth:`SRPBParallelEnv.return_trip <srpb_gym.pettingzoo_env.SRPBParallelEnv.return_trip>`:
+back to its start, then to its goal again), so that its slot goes on with a new task while
+the other robots drive on: a robot on a long or slow route is not cut short because
+another arrived first. The episode of an environment ends for all its robots at a
+collision that ends a robot's task (``collision="terminate"``) or at the time limit: the
+robots still driving are done as *truncated* (``info["TimeLimit.truncated"] = True`` with
+their ``terminal_observation``), so PPO bootstraps their value instead of treating the cut
+as an end. Every transition in the buffer is then a real one. Evaluation (``srpb-gym eval
+--robots N --policy model.zip``) has no return trips: there a robot leaves at its goal.
 
 The recipe ``python -m training.multi_robot`` trains PPO with it.
 """
@@ -75,18 +78,25 @@ class SharedPolicyVecEnv(VecEnv):
         for k, env in enumerate(self.envs):
             actions = {a: self._actions[k * n + i] for i, a in enumerate(self.agents)}
             obs, rew, term, trunc, info = env.step(actions)
-            ended = any(term.values()) or any(trunc.values())
+            # arrived: the task ended at the goal, not by a collision at the same step
+            arrived = {a: term[a] and env.at_goal(a) and not info[a]["collision"]
+                       for a in self.agents}  # fmt: skip
+            ended = any(trunc.values()) or any(term[a] and not arrived[a] for a in term)
             for i, a in enumerate(self.agents):
                 rewards[k * n + i] = rew[a]
                 slot_info = dict(info[a])
-                if ended:
+                if ended or term[a]:
                     dones[k * n + i] = True
                     slot_info["terminal_observation"] = obs[a]
                     # cut short (by the time limit, or because another robot ended it)
                     slot_info["TimeLimit.truncated"] = not term[a]
                 infos.append(slot_info)
-            if ended:
+            if ended or not env.agents:
                 obs, _ = env.reset()
+            else:
+                for a in self.agents:
+                    if term[a]:
+                        obs[a], _ = env.return_trip(a)
             obs_out += [obs[a] for a in self.agents]
         self._actions = None
         return np.stack(obs_out), rewards, dones, infos
