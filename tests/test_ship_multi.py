@@ -84,8 +84,18 @@ def test_ship_packages_a_run_whose_card_command_reproduces_it(tmp_path, monkeypa
     rows = (run / "test" / "episodes.csv").read_text().splitlines()
     (run / "test" / "episodes.csv").write_text("\n".join(rows[:3]) + "\n")  # 1 episode of 4
     again = ship_multi.ship(run, "ppo-corridor-task-2robots", episodes=2, seed=7,
-                            baselines=["dwa"], resume=True)  # fmt: skip
+                            baselines=["dwa"], resume=True, candidates=2,
+                            side_by_side=3)  # fmt: skip
     assert again["test"]["results"] == test["results"]
+    # the card states the candidates tested on these seeds and the runs sharing the cores
+    assert (again["test"]["candidates"], again["training"]["side_by_side"]) == (2, 3)
+    text = (target / "card.md").read_text()
+    assert "2 candidate runs were trained for this slot and tested on these seeds" in text
+    assert "min; 3 runs side by side on the machine's cores" in text
+    assert "1 candidate run was trained" in ship_multi.card_markdown(facts["name"], facts)
+    assert "side by side" not in ship_multi.card_markdown(facts["name"], facts)
+    with pytest.raises(ValueError, match="candidates: at least 1"):
+        ship_multi.ship(run, "ppo-corridor-task-2robots", episodes=2, seed=7, candidates=0)
     assert len((run / "test" / "episodes.csv").read_text().splitlines()) == 1 + 4 * 2
     assert test["env_kwargs"] == {}  # reward_people is the reward's, not the evaluation's
     assert facts["env_kwargs"]["reward_people"] == "ground_truth"

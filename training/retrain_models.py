@@ -172,7 +172,7 @@ def teachers_of(name: str) -> tuple[tuple[str, str], ...]:
 
 
 def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
-                   root: str = "runs/train") -> list[list[str]]:  # fmt: skip
+                   root: str = "runs/train", side_by_side: int = 1) -> list[list[str]]:  # fmt: skip
     """The commands that retrain the multi-robot policy ``name``: a run per seed and, with
     ``ship``, ``training.ship_multi`` of the first seed's run."""
     multi = MULTI_RECIPES[name]
@@ -189,7 +189,8 @@ def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
             *(["--hyperparams", *hyper] if hyper else [])]
            for seed, run in zip(seeds, runs)]  # fmt: skip
     if ship:
-        out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name])
+        side = ["--side-by-side", str(side_by_side)] if side_by_side > 1 else []
+        out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name, *side])
     return out
 
 
@@ -242,7 +243,7 @@ def commands(name: str, seeds: list[int], threads: int, ship: bool = True,
     :func:`multi_commands`); ``side_by_side``: the runs that train at once on the machine's
     cores (``--jobs``), which the model card records beside the run's wall time."""
     if name in MULTI_RECIPES:
-        return multi_commands(name, seeds, threads, ship, root)
+        return multi_commands(name, seeds, threads, ship, root, side_by_side)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
     out = [train_command(name, seed, run, threads) for seed, run in zip(seeds, runs)]

@@ -15,6 +15,9 @@ median SRPB metrics from the true people and from the tracked ones. The card nam
 
 ``--workers N`` spreads the episodes over N processes; ``--resume`` continues a test
 evaluation that was interrupted (Ctrl-C keeps its finished episodes in ``RUN/test``).
+``--candidates N`` (default 1) states on the card how many runs were trained for this
+slot and tested on the test seeds, and ``--side-by-side N`` that the run trained beside
+N-1 others on the same cores (its wall time then not that of a run alone).
 
 ``--name`` must have the form ``ppo-<scenario>-<preset>-<N>robots`` (:func:`check_name`),
 N the run's robots: the folder of that name in ``srpb_gym/models`` is replaced, and
@@ -129,9 +132,15 @@ def test_command(name: str, test: dict[str, Any]) -> str:
 
 def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_SEED,
          baselines: Sequence[str] = BASELINES, workers: int = 1,
-         resume: bool = False) -> dict[str, Any]:  # fmt: skip
+         resume: bool = False, candidates: int = 1,
+         side_by_side: int = 1) -> dict[str, Any]:  # fmt: skip
     """Package ``run`` as model ``name`` (see the module docstring); returns the card.
-    ``resume``: continue the interrupted test evaluation in ``run/test``."""
+    ``resume``: continue the interrupted test evaluation in ``run/test``; ``candidates``:
+    the runs trained for this slot and tested on the test seeds; ``side_by_side``: the
+    runs that trained at once on the machine's cores."""
+    for key, value in (("candidates", candidates), ("side_by_side", side_by_side)):
+        if value < 1:
+            raise ValueError(f"{key}: at least 1 (the run shipped), got {value}")
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
     robots, scenario = int(info["robots"]), info["scenario"]
     target = check_name(name, robots)
@@ -152,12 +161,14 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
         "checkpoint": "final", "validation": None, "hyperparams": info["hyperparams"],
         "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
                      "envs": info["envs"], "machine": cpu(), "command": info["command"],
+                     "side_by_side": side_by_side,
                      "init": init and {**init, "model": _relative(init["model"]),
                                        "vecnormalize": init["vecnormalize"]
                                        and _relative(init["vecnormalize"])}},
         "test": {"episodes": episodes, "seed": seed, "seed_range": _range_name(seed, episodes),
                  "robots": robots, "envs": env_ids, "env_kwargs": eval_kwargs,
                  "warmup": TEST_WARMUP, "baselines": list(baselines), "results": results,
+                 "candidates": candidates,
                  "machine": cpu()},
     }  # fmt: skip
     card["test"]["command"] = test_command(name, card["test"])
@@ -170,6 +181,21 @@ def _percent(f: dict[str, Any], key: str) -> str:
     ci = f.get(f"{key}_ci")
     interval = f" [{100 * ci[0]:.0f}-{100 * ci[1]:.0f}]" if ci else ""
     return f"{100 * f[key]:.1f} %{interval}"
+
+
+def _shared(runs: int) -> str:
+    return (f"; {runs} runs side by side on the machine's cores, the time of one run alone "
+            "not measured" if runs > 1 else "")  # fmt: skip
+
+
+def _candidates(n: int | None) -> list[str]:
+    if n is None:  # a card from before the count was kept
+        return []
+    if n == 1:
+        return ["1 candidate run was trained for this slot; the test seeds were used once, "
+                "at shipping.", ""]  # fmt: skip
+    return [f"{n} candidate runs were trained for this slot and tested on these seeds; the "
+            "one shipped was chosen on validation seeds.", ""]  # fmt: skip
 
 
 def card_markdown(name: str, card: dict[str, Any]) -> str:
@@ -193,7 +219,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| observation | {_observation_text(card['env_kwargs'].get('observation'))} |",
         f"| steps | {t['steps']:,} robot-steps ({t['envs']} environment"
         f"{'s' if t['envs'] > 1 else ''} of {n} robots) |",
-        f"| wall time | {t['wall_time_s'] / 60:.1f} min |",
+        f"| wall time | {t['wall_time_s'] / 60:.1f} min{_shared(t.get('side_by_side', 1))} |",
         f"| initial weights | {start} |",
         f"| seed | {card['seed']} |",
         f"| checkpoint | {card['checkpoint']} |",
@@ -202,6 +228,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
                                             for k, v in card["hyperparams"].items()),
         "", f"## Test: {test['episodes']} episodes of {n} robots, seeds {test['seed']}-{last} "
         f"({test['seed_range']} seeds, never trained on or chosen with)", "",
+        *_candidates(test.get("candidates")),
         "Rates over every robot's episode, with 95 % Wilson intervals; *hit a robot*: the "
         "robot's first collision was with another robot. Medians of the SRPB metrics (%, "
         "s), `paper` semantics, from the true people (GT) and, after the slash, from the "
@@ -231,6 +258,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--resume", action="store_true", help="continue an interrupted test evaluation (RUN/test)"
     )
+    parser.add_argument("--candidates", type=int, default=1, metavar="N",
+                        help="the runs trained for this slot and tested on the test seeds "
+                        "(default: 1), stated on the card")  # fmt: skip
+    parser.add_argument("--side-by-side", type=int, default=1, metavar="N",
+                        help="the run trained beside N-1 others on the same machine: the "
+                        "card says so")  # fmt: skip
     args = parser.parse_args(argv)
     try:
         if not (args.run / "run.json").is_file():
@@ -238,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
         robots = json.loads((args.run / "run.json").read_text(encoding="utf-8"))["robots"]
         check_name(args.name, robots)
         card = ship(args.run, args.name, args.episodes, args.seed, args.baselines, args.workers,
-                    args.resume)  # fmt: skip
+                    args.resume, args.candidates, args.side_by_side)  # fmt: skip
     except (ValueError, KeyError) as exc:
         print(f"training.ship_multi: error: {exc}", file=sys.stderr)
         return 2
