@@ -37,6 +37,7 @@ from srpb_gym.knowledge import Knowledge
 from srpb_gym.observation import ObservationConfig
 from srpb_gym.render import Renderer
 from srpb_gym.settings import EnvSettings
+from srpb_gym.task import RobotTask
 
 __all__ = ["SRPBParallelEnv", "env", "parallel_env", "raw_env"]
 
@@ -222,9 +223,12 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
 
     def at_goal(self, agent: str) -> bool:
         """Whether ``agent``'s robot is at its goal now (the SRPB goal rule)."""
+        return self._task_of(agent).goal_reached()
+
+    def _task_of(self, agent: str) -> RobotTask:
         if agent not in self._task:
             raise ValueError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
-        return self._task[agent].goal_reached()
+        return self._task[agent]
 
     def return_trip(self, agent: str) -> tuple[Any, dict[str, Any]]:
         """For training: ``agent``, whose robot has just reached its goal (so it left
@@ -235,10 +239,8 @@ class SRPBParallelEnv(ParallelEnv, EzPickle):
         never calls it: there a robot leaves at its goal. ``ValueError`` for an agent
         still in the episode, one that left by other than its goal, or an episode that
         has ended."""
-        task = self._task.get(agent)
-        if task is None:
-            raise ValueError(f"unknown agent {agent!r}; agents are {self.possible_agents}")
-        if agent in self.agents or not self.agents or not self.at_goal(agent):
+        task = self._task_of(agent)
+        if agent in self.agents or not self.agents or not task.goal_reached():
             raise ValueError(f"{agent} can start a return trip only right after reaching its "
                              "goal, while other agents are still in the episode")  # fmt: skip
         robot = task.robot

@@ -171,6 +171,12 @@ def teachers_of(name: str) -> tuple[tuple[str, str], ...]:
     return recipe_of(name).teachers
 
 
+def side_option(side_by_side: int) -> list[str]:
+    """The shipping scripts' ``--side-by-side`` option, for runs trained ``side_by_side``
+    at a time (none for a run alone)."""
+    return ["--side-by-side", str(side_by_side)] if side_by_side > 1 else []
+
+
 def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
                    root: str = "runs/train", side_by_side: int = 1) -> list[list[str]]:  # fmt: skip
     """The commands that retrain the multi-robot policy ``name``: a run per seed and, with
@@ -189,8 +195,8 @@ def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
             *(["--hyperparams", *hyper] if hyper else [])]
            for seed, run in zip(seeds, runs)]  # fmt: skip
     if ship:
-        side = ["--side-by-side", str(side_by_side)] if side_by_side > 1 else []
-        out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name, *side])
+        out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name,
+                    *side_option(side_by_side)])  # fmt: skip
     return out
 
 
@@ -248,10 +254,9 @@ def commands(name: str, seeds: list[int], threads: int, ship: bool = True,
     runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
     out = [train_command(name, seed, run, threads) for seed, run in zip(seeds, runs)]
     if ship:
-        side = ["--side-by-side", str(side_by_side)] if side_by_side > 1 else []
         out.append([sys.executable, "-m", "training.ship", runs[0], "--name", name,
                     "--candidates", "1", "--validate", str(recipe_of(name).validate),
-                    *side])  # fmt: skip
+                    *side_option(side_by_side)])  # fmt: skip
     return out
 
 

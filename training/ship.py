@@ -288,13 +288,17 @@ def _flow(value: Any) -> str:
     return '""' if value == "" else str(value)  # an empty value is no YAML document
 
 
+def side_by_side_text(runs: int) -> str:
+    """What a card's wall time adds when ``runs`` runs trained at once on the cores."""
+    return (f"; {runs} runs side by side on the machine's cores, the time of one run alone "
+            "not measured" if runs > 1 else "")  # fmt: skip
+
+
 def _wall_time(training: dict[str, Any]) -> str:
     ppo = training["wall_time_s"] / 60
     warm = training.get("warm_start")
     stopped = ", stopped by hand (Ctrl-C or SIGTERM)" if training.get("interrupted") else ""
-    runs = training.get("side_by_side", 1)
-    shared = (f"; {runs} runs side by side on the machine's cores, the time of one run alone "
-              "not measured" if runs > 1 else "")  # fmt: skip
+    shared = side_by_side_text(training.get("side_by_side", 1))
     if not warm:
         return f"{ppo:.1f} min{stopped}{shared}"
     pre = warm["wall_time_s"] / 60

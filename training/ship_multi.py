@@ -56,6 +56,7 @@ from training.ship import (
     _range_name,
     _relative,
     _weights_text,
+    side_by_side_text,
 )
 
 #: the classical planners a multi-robot model is tested beside, N robots each
@@ -183,11 +184,6 @@ def _percent(f: dict[str, Any], key: str) -> str:
     return f"{100 * f[key]:.1f} %{interval}"
 
 
-def _shared(runs: int) -> str:
-    return (f"; {runs} runs side by side on the machine's cores, the time of one run alone "
-            "not measured" if runs > 1 else "")  # fmt: skip
-
-
 def _candidates(n: int | None) -> list[str]:
     if n is None:  # a card from before the count was kept
         return []
@@ -219,7 +215,8 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| observation | {_observation_text(card['env_kwargs'].get('observation'))} |",
         f"| steps | {t['steps']:,} robot-steps ({t['envs']} environment"
         f"{'s' if t['envs'] > 1 else ''} of {n} robots) |",
-        f"| wall time | {t['wall_time_s'] / 60:.1f} min{_shared(t.get('side_by_side', 1))} |",
+        f"| wall time | {t['wall_time_s'] / 60:.1f} min"
+        f"{side_by_side_text(t.get('side_by_side', 1))} |",
         f"| initial weights | {start} |",
         f"| seed | {card['seed']} |",
         f"| checkpoint | {card['checkpoint']} |",

@@ -246,11 +246,7 @@ class EpisodeRecord:
     def keep_last(self) -> None:
         """Drop every sample but the last, which becomes sample 0 of a new episode (with its
         people, groups and members): a robot that starts a new task where it stands."""
-        samples, rows, groups, members, p0, g0, m0 = self.counts.tolist()
-        if samples == 0:
-            raise ValueError("the record is empty")
-        if p0 < 0:  # built by from_arrays
-            p0, g0, m0 = self._sample_start(samples - 1)
+        samples, rows, groups, members, p0, g0, m0 = self._last_sample()
         robot, people, pint, gint, mem = self.tables
         k, g, m = rows - p0, groups - g0, members - m0
         robot[0] = robot[samples - 1]
@@ -266,11 +262,7 @@ class EpisodeRecord:
     def latest(self) -> tuple[NDArray, NDArray, NDArray, NDArray, NDArray]:
         """The last sample as small tables: robot (1, 12), people (k, 9), people ids (k,),
         group sizes (g,) and group members (sum of sizes,) as indices into its people."""
-        samples, rows, groups, members, p0, g0, m0 = self.counts.tolist()
-        if samples == 0:
-            raise ValueError("the record is empty")
-        if p0 < 0:  # built by from_arrays
-            p0, g0, m0 = self._sample_start(samples - 1)
+        samples, rows, groups, members, p0, g0, m0 = self._last_sample()
         robot, people, pint, gint, mem = self.tables
         return (
             robot[samples - 1 : samples],
@@ -279,6 +271,16 @@ class EpisodeRecord:
             gint[g0:groups, 3],
             mem[m0:members] - p0,
         )
+
+    def _last_sample(self) -> tuple[int, int, int, int, int, int, int]:
+        """The rows in use of each table and where the last sample's people, groups and
+        members start; ``ValueError`` for an empty record."""
+        samples, rows, groups, members, p0, g0, m0 = self.counts.tolist()
+        if samples == 0:
+            raise ValueError("the record is empty")
+        if p0 < 0:  # built by from_arrays
+            p0, g0, m0 = self._sample_start(samples - 1)
+        return samples, rows, groups, members, p0, g0, m0
 
     def _sample_start(self, n: int) -> tuple[int, int, int]:
         p0 = int(np.searchsorted(self._int_view(2, ROWS)[:, 0], n))
