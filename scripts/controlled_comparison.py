@@ -8,7 +8,10 @@ test episodes, the runs paired by training seed, the effect reported in ground t
         --planner dwa social-dwa --episodes 200 --workers 2 --out runs/compare-crowd
 
 ``--a`` and ``--b`` name ``srpb-gym train`` run folders, the i-th of each trained with the
-same seed, environment and hyperparameters (checked; what else differs is printed). Each
+same seed, environment and hyperparameters (checked; what else differs is printed). A
+shipped model (its name, or its folder in ``srpb_gym/models``) stands for the run it was
+packaged from: its card holds the run's settings, and its ``model.zip`` is the checkpoint
+its card names (printed where that is not ``--checkpoint``). Each
 run's ``best/`` (``--checkpoint final``: its final model) and every ``--planner`` run the
 same ``--episodes`` seeds from ``--seed`` (default the test range, 20,000,000:
 :data:`srpb_gym.seeds.TEST`) with the ``srpb-gym eval`` harness into ``--out`` (an
@@ -42,19 +45,46 @@ from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.intervals import wilson
 from srpb_gym.evaluation.paired import mcnemar, signed_rank
 from srpb_gym.evaluation.spec import resolve_config
+from srpb_gym.models import model_path
 from srpb_gym.seeds import TEST
 
 METRICS = ("m_psi", "m_fsi", "m_dir")
 RESAMPLES = 10_000
 
 
+def shipped_folder(run: Path) -> Path | None:
+    """The folder of the shipped model ``run`` names (its name or its folder), else None."""
+    if not run.exists() and model_path(str(run)) is not None:
+        return Path(str(model_path(str(run)))).parent
+    if (run / "card.json").is_file() and (run / "model.zip").is_file():
+        return run
+    return None
+
+
 def run_config(run: Path) -> dict[str, Any]:
-    """The ``config.yaml`` of a ``srpb-gym train`` run (an error naming the run if absent)."""
+    """The ``config.yaml`` of a ``srpb-gym train`` run, or the settings on a shipped
+    model's card (an error naming the run if neither)."""
+    shipped = shipped_folder(run)
+    if shipped is not None:
+        return json.loads((shipped / "card.json").read_text(encoding="utf-8"))
     path = run / "config.yaml"
     if not path.is_file():
-        raise InputError("no config.yaml: not a srpb-gym train run folder", str(run),
-                         key="--a/--b")  # fmt: skip
+        raise InputError("no config.yaml: not a srpb-gym train run folder (nor a shipped "
+                         "model)", str(run), key="--a/--b")  # fmt: skip
     return yaml.safe_load(path.read_text(encoding="utf-8"))
+
+
+def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
+    """The model file of ``run`` to evaluate (``best/`` or the final ``model.zip``), and a
+    line to print when a shipped model's checkpoint is not ``checkpoint``."""
+    shipped = shipped_folder(run)
+    if shipped is None:
+        return str(run / "best") if checkpoint == "best" else str(run / "model.zip"), None
+    chosen = str(run_config(run).get("checkpoint", ""))
+    note = None
+    if not chosen.startswith(checkpoint):
+        note = f"{run}: the shipped model is its run's {chosen or 'unnamed'} checkpoint"
+    return str(shipped / "model.zip"), note
 
 
 def check_pairs(a: list[Path], b: list[Path]) -> list[str]:
@@ -236,8 +266,12 @@ def main(argv: list[str] | None = None) -> int:
     try:
         for line in check_pairs(args.a, args.b):
             print(line)
-        models = [str(run / "best") if args.checkpoint == "best" else str(run / "model.zip")
-                  for run in [*args.a, *args.b]]  # fmt: skip
+        models = []
+        for run in [*args.a, *args.b]:
+            model, note = checkpoint_of(run, args.checkpoint)
+            models.append(model)
+            if note:
+                print(note)
         resume = os.path.isfile(os.path.join(args.out, "episodes.csv"))
         config = resolve_config([args.env], planners=args.planner or None, policies=models,
                                 episodes=args.episodes, seed=args.seed, out=args.out,

@@ -24,6 +24,7 @@ from srpb_gym.episode_setup import (
     episode_layout,
     out_of_time,
     planning_seconds,
+    route_choice,
 )
 from srpb_gym.errors import InputError
 from srpb_gym.knowledge import Knowledge
@@ -192,7 +193,12 @@ class SRPBNavEnv(gym.Env):
     per-walker ``robot_reaction``, F-formation members' ``formation_robot_reaction``);
     people still collide with the robot physically. Every argument is plain data;
     ``reset(options=...)`` takes ``people`` (False: an empty variant), ``start`` and
-    ``goal`` (x, y, yaw). The arguments after ``render_mode`` are the environment's
+    ``goal`` (x, y, yaw). ``route``: which start and goal the robot draws from, ``None``
+    (default) the scenario's ``robot`` entry, ``i`` its ``robots[i]`` entry (the route of
+    robot i of the multi-robot environment), ``"random"`` one of its ``robots`` entries
+    drawn for each episode with the environment's generator (to train a single robot for
+    every robot's route); the entries must have the ``robot`` entry's goal tolerance.
+    The arguments after ``render_mode`` and ``route`` are the environment's
     settings (:class:`~srpb_gym.settings.EnvSettings`, checked once when the environment
     is made; an unknown one is a ``TypeError``); ``settings=EnvSettings.from_kwargs({...})``
     passes them as one object instead (the same settings for several environments).
@@ -224,7 +230,8 @@ class SRPBNavEnv(gym.Env):
       former weights; metrics, dynamics and observations are unchanged). The info
       gained the attribution of collisions (``collision_kind``, ``collision_by``, ...,
       ``collision_count``); everything else is as it was. ``reward_people`` was added;
-      its default ``"tracked"`` is the reward as before.
+      its default ``"tracked"`` is the reward as before. ``route`` was added; by default
+      the robot drives the scenario's ``robot`` entry, the episodes as before.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -234,12 +241,15 @@ class SRPBNavEnv(gym.Env):
         scenario: str | os.PathLike[str] = "corridor",
         render_mode: str | None = None,
         settings: EnvSettings | None = None,
+        *,
+        route: int | str | None = None,
         **kwargs: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
         self.render_mode = render_mode
         self.settings = EnvSettings.given(settings, kwargs, type(self).__name__)
         self.scenario = self.settings.load_scenario(scenario)
+        self.route = route_choice(self.scenario, route)
         self.sim, (self.task,) = self.settings.build(self.scenario)
         self.observation_space = self.task.observation_space
         self.action_space = self.task.action_space
@@ -382,7 +392,10 @@ class SRPBNavEnv(gym.Env):
         return out_of_time(self.sim, self._steps, self._step_limit)
 
     def _layout(self, options: dict[str, Any] | None) -> EpisodeLayout:
-        return episode_layout(self.scenario, self.np_random, options)
+        route = self.route
+        if route == "random":
+            route = int(self.np_random.integers(len(self.scenario.robots)))
+        return episode_layout(self.scenario, self.np_random, options, route=route)
 
 
 class StepLimitSync(gym.Wrapper, gym.utils.RecordConstructorArgs):

@@ -35,10 +35,12 @@ def episode_layout(
     n_robots: int = 1,
     *,
     strict: bool = True,
+    route: int | None = None,
 ) -> EpisodeLayout:
-    """The layout of one episode: drawn from ``scenario`` with ``rng``, changed by the
-    reset options ``people`` (False: nobody) and, with one robot, ``start`` and ``goal``
-    ((x, y, yaw) [m, m, rad], checked to hold the robot and to be connected).
+    """The layout of one episode: drawn from ``scenario`` with ``rng`` (a single robot
+    from ``scenario.robots[route]`` when ``route`` is given), changed by the reset options
+    ``people`` (False: nobody) and, with one robot, ``start`` and ``goal`` ((x, y, yaw)
+    [m, m, rad], checked to hold the robot and to be connected).
 
     An unknown option is an error, or with ``strict=False`` a warning (PettingZoo's API
     test passes options of its own)."""
@@ -55,7 +57,7 @@ def episode_layout(
     people = options.get("people", True)
     if not isinstance(people, (bool, np.bool_)):
         raise InputError(f"expected true or false, got {people!r}", key="options.people")
-    layout = sample(scenario, rng, n_robots=n_robots)
+    layout = sample(scenario, rng, n_robots=n_robots, route=route)
     if not people:
         layout = replace(layout, people=(), formations=())
     if "start" in options or "goal" in options:
@@ -70,6 +72,36 @@ def episode_layout(
         _check_poses(scenario, start, goal)
         layout = replace(layout, robots=(RobotLayout(start, goal),))
     return layout
+
+
+def route_choice(scenario: Scenario, route: Any) -> int | str | None:
+    """The ``route`` argument of a single-robot environment, checked: ``None`` (the
+    scenario's ``robot`` entry), ``i`` (its ``robots[i]`` entry) or ``"random"`` (one of
+    its ``robots`` entries drawn for each episode). The entries must share the goal
+    tolerance of ``robot`` (the task's metric parameters hold one)."""
+    if route is None:
+        return None
+    if route == "random":
+        if not scenario.robots:
+            raise InputError(f"scenario {scenario.name!r} has no robots entries to draw a "
+                             f"route from", key="route")  # fmt: skip
+        entries = list(range(len(scenario.robots)))
+    elif isinstance(route, str):
+        raise InputError(f"expected a robots entry's index or 'random', got {route!r}",
+                         key="route")  # fmt: skip
+    else:
+        scenario.route_spec(route)
+        route = int(route)
+        entries = [route]
+    tolerance = scenario.robot.goal_tolerance
+    for i in entries:
+        if scenario.robots[i].goal_tolerance != tolerance:
+            raise scenario.error(
+                f"robots[{i}].goal_tolerance",
+                f"a route's goal tolerance must be the robot entry's ({tolerance:g} m) for "
+                f"route={route!r}, got {scenario.robots[i].goal_tolerance:g} m",
+            )
+    return route
 
 
 def planning_seconds(value: Any) -> float:

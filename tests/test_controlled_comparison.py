@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import yaml
@@ -76,3 +78,20 @@ def test_pairs_differ_only_where_allowed(tmp_path):
     with pytest.raises(InputError, match="not a srpb-gym train run"):
         cc.check_pairs([a], [tmp_path])
     assert np.isnan(cc.relative_change(np.zeros(3), np.ones(3)))
+
+
+def test_a_shipped_model_stands_for_its_run(tmp_path):
+    from srpb_gym.models import card
+
+    name = "ppo-fformation-task"
+    config = cc.run_config(Path(name))
+    assert config == card(name) and config["seed"] == 0 and "hyperparams" in config
+    model, note = cc.checkpoint_of(Path(name), "best")  # its card: the best checkpoint
+    assert model.endswith(f"{name}/model.zip") and note is None
+    model, note = cc.checkpoint_of(Path(name), "final")
+    assert note == f"{name}: the shipped model is its run's {config['checkpoint']} checkpoint"
+    run = write_run(tmp_path / "a", reward="task")
+    assert cc.checkpoint_of(run, "best") == (str(run / "best"), None)
+    # a shipped model is paired as its run is: by seed, environment and hyperparameters
+    with pytest.raises(InputError, match="differ in"):
+        cc.check_pairs([Path(name)], [run])

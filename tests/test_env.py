@@ -403,3 +403,85 @@ def test_knowledge_is_what_the_robot_knows():
     assert not np.array_equal(k.tracks.xy, sim.world.people_xy[: len(k.tracks.xy)])  # noisy
     assert np.array_equal(k.pose, sim.world.robot_pose[0]) and k.scan.shape == (181,)
     assert k.goal_tolerance == 0.2 and k.control_dt == 0.1 and k.t == pytest.approx(1.0)
+
+
+def _entry_of(scenario, start, goal) -> int | None:
+    """The index of the robots entry whose start and goal places hold ``start``, ``goal``."""
+
+    def inside(place, pose) -> bool:
+        return place.xmin <= pose[0] <= place.xmax and place.ymin <= pose[1] <= place.ymax
+
+    for i, spec in enumerate(scenario.robots):
+        if inside(spec.start.place, start) and inside(spec.goal.place, goal):
+            return i
+    return None
+
+
+def test_route_drives_a_robots_entry():
+    env = gym.make("SRPB-Crowd-v0", route=2).unwrapped
+    scenario = env.scenario
+    for seed in range(3):
+        env.reset(seed=seed)
+        robot = env.sim.layout.robots[0]
+        assert _entry_of(scenario, robot.start, robot.goal) == 2
+        assert robot.start[0] > robot.goal[0] + 8.0  # right to left
+    # the default: the robot entry, the same episodes as before the argument existed
+    plain = gym.make("SRPB-Crowd-v0").unwrapped
+    plain.reset(seed=5)
+    from srpb_gym.scenarios import sample
+
+    expected = sample(plain.scenario, np.random.default_rng(np.random.SeedSequence(5)))
+    assert plain.sim.layout.robots == expected.robots
+
+
+def test_random_route_draws_every_entry_from_the_env_generator():
+    env = gym.make("SRPB-Crowd-v0", route="random").unwrapped
+    entries = []
+    for seed in range(40):
+        env.reset(seed=seed)
+        robot = env.sim.layout.robots[0]
+        entries.append(_entry_of(env.scenario, robot.start, robot.goal))
+    assert None not in entries and set(entries) == set(range(len(env.scenario.robots)))
+    again = gym.make("SRPB-Crowd-v0", route="random").unwrapped
+    for seed in (3, 17):
+        env.reset(seed=seed)
+        again.reset(seed=seed)
+        assert env.sim.layout.robots == again.sim.layout.robots
+
+
+@pytest.mark.parametrize(
+    ("route", "message"),
+    [
+        ("any", r"route: expected a robots entry's index or 'random', got 'any'"),
+        (8, r"route: scenario 'crowd' has its robots entries 0-7, got 8"),
+        (-1, r"route: scenario 'crowd' has its robots entries 0-7, got -1"),
+        (True, r"route: scenario 'crowd' has its robots entries 0-7, got True"),
+        (1.0, r"route: scenario 'crowd' has its robots entries 0-7, got 1.0"),
+    ],
+)
+def test_bad_routes(route, message):
+    with pytest.raises(ValueError, match=message):
+        gym.make("SRPB-Crowd-v0", route=route)
+
+
+def test_routes_need_robots_entries_with_the_robot_s_goal_tolerance(tmp_path):
+    room = tmp_path / "room.yaml"
+    base = (
+        "name: room\nbounds: [0, 0, 10, 5]\n"
+        "robot: {start: {position: [1, 2.5], yaw_deg: 0}, goal: {position: [9, 2.5], "
+        "yaw_deg: 0}}\n"
+    )
+    room.write_text(base)
+    with pytest.raises(ValueError, match=r"route: scenario 'room' has no robots entries to draw"):
+        gym.make("SRPB-Custom-v0", scenario=str(room), route="random")
+    room.write_text(
+        base + "robots:\n"
+        "  - {start: {position: [1, 1]}, goal: {position: [9, 1]}}\n"
+        "  - {start: {position: [9, 4]}, goal: {position: [1, 4]}, goal_tolerance: 0.5}\n"
+    )
+    env = gym.make("SRPB-Custom-v0", scenario=str(room), route=0).unwrapped
+    env.reset(seed=0)
+    assert env.sim.layout.robots[0].start[:2] == (1.0, 1.0)
+    with pytest.raises(ValueError, match=r"room.yaml:6: robots\[1\]\.goal_tolerance: a "
+                       r"route's goal tolerance must be the robot entry's \(0.2 m\)"):  # fmt: skip
+        gym.make("SRPB-Custom-v0", scenario=str(room), route="random")

@@ -115,15 +115,25 @@ def test_ship_packages_a_run_whose_card_command_reproduces_it(tmp_path, monkeypa
 
 def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
     name = "ppo-crowd-srpb-3robots"
-    train, ship = commands(name, [4], 1, root="runs/x")
-    assert train[1:3] == ["-m", "training.multi_robot"] and ship[1:3] == [
+    routes, train, ship = commands(name, [4], 1, root="runs/x")
+    assert routes[1:4] == ["-m", "srpb_gym", "train"] and ship[1:3] == [
         "-m",
         "training.ship_multi",
     ]
-    assert train[train.index("--init") + 1] == "ppo-crowd-srpb" and "--seed" in train
+    assert train[1:3] == ["-m", "training.multi_robot"]
+    # first alone on every route of the scenario, then among the other robots from there
+    assert routes[routes.index("--init") + 1] == "ppo-crowd-srpb" and "route=random" in routes
+    first = routes[routes.index("--out") + 1]
+    assert train[train.index("--init") + 1] == f"{first}/best" and "--seed" in train
+    assert ship[ship.index("training.ship_multi") + 1] == train[train.index("--out") + 1]
     crowd = commands("ppo-crowd-srpb", [4], 1, ship=False)[0]
     kwargs = crowd[crowd.index("--env-kwargs") + 1 : crowd.index("--hyperparams")]
     assert train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")] == kwargs
+    assert routes[routes.index("--env-kwargs") + 1 : routes.index("--hyperparams")] == [
+        *kwargs,
+        "route=random",
+    ]
+    assert routes[routes.index("--hyperparams") :] == train[train.index("--hyperparams") :]
     assert waves([name, "ppo-crowd-srpb"], []) == [["ppo-crowd-srpb"], [name]]
     assert waves([name], ["ppo-crowd-srpb"]) == [[name]]
     with pytest.raises(ValueError, match=r"its teacher ppo-crowd-srpb \(crowd\) is not shipped"):

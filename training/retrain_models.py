@@ -143,7 +143,12 @@ class MultiRecipe:
     and shipped (``python -m training.ship_multi``): ``robots`` robots in each of ``envs``
     multi-robot environments of ``scenario``, ``steps`` robot-steps, started from the
     shipped single-robot model ``init`` (which it observes and is paid as: the env kwargs
-    of its recipe), ``hyperparams`` for ``--hyperparams``."""
+    of its recipe), ``hyperparams`` for ``--hyperparams``. With ``routes_steps``, ``init``
+    is first fine-tuned alone for that many steps (``srpb-gym train --init``, the same
+    hyperparameters) on routes drawn from every ``robots`` entry of the scenario
+    (``route=random``): a specialist trained on the single robot's route drives the
+    others' routes less well; the multi-robot run then starts from that run's ``best/``
+    checkpoint."""
 
     scenario: str
     robots: int
@@ -151,14 +156,17 @@ class MultiRecipe:
     steps: int
     init: str
     hyperparams: tuple[str, ...] = ()
+    routes_steps: int = 0
 
 
 #: the shared policies for several robots, by name (``ppo-<scenario>-<preset>-<N>robots``)
 MULTI_RECIPES: dict[str, MultiRecipe] = {
-    # fine-tuned from the crowd specialist with its own PPO settings, among 2 other robots
+    # the crowd specialist with its own PPO settings fine-tuned alone on every route of
+    # the scenario's robots list, then among 2 other robots
     "ppo-crowd-srpb-3robots": MultiRecipe(
         "crowd", 3, 2, 1_000_000, "ppo-crowd-srpb",
         ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
+        routes_steps=1_000_000,
     ),
 }  # fmt: skip
 
@@ -187,13 +195,23 @@ def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
     stamp = time.strftime("%Y%m%d-%H%M%S")
     runs = [f"{root}/{name}-s{seed}-{stamp}" for seed in seeds]
     hyper = [*multi.hyperparams, *([f"torch_threads={threads}"] if threads else [])]
-    out = [[sys.executable, "-m", "training.multi_robot", "--scenario", multi.scenario,
-            "--robots", str(multi.robots), "--envs", str(multi.envs), "--steps",
-            str(multi.steps), "--reward", preset, "--seed", str(seed), "--init", multi.init,
-            "--save-every", "100000", "--out", run,
-            *(["--env-kwargs", *kwargs] if kwargs else []),
-            *(["--hyperparams", *hyper] if hyper else [])]
-           for seed, run in zip(seeds, runs)]  # fmt: skip
+    out, inits = [], [multi.init] * len(seeds)
+    if multi.routes_steps:
+        env_id = RECIPES[scenario].env_id
+        inits = [f"{root}/{name}-routes-s{seed}-{stamp}" for seed in seeds]
+        out += [[sys.executable, "-m", "srpb_gym", "train", "--env", env_id, "--reward", preset,
+                 "--seed", str(seed), "--steps", str(multi.routes_steps), "--out", first,
+                 "--no-progress", "--init", multi.init, "--env-kwargs", *kwargs,
+                 "route=random", *(["--hyperparams", *hyper] if hyper else [])]
+                for seed, first in zip(seeds, inits)]  # fmt: skip
+        inits = [f"{first}/best" for first in inits]
+    out += [[sys.executable, "-m", "training.multi_robot", "--scenario", multi.scenario,
+             "--robots", str(multi.robots), "--envs", str(multi.envs), "--steps",
+             str(multi.steps), "--reward", preset, "--seed", str(seed), "--init", init,
+             "--save-every", "100000", "--out", run,
+             *(["--env-kwargs", *kwargs] if kwargs else []),
+             *(["--hyperparams", *hyper] if hyper else [])]
+            for seed, run, init in zip(seeds, runs, inits)]  # fmt: skip
     if ship:
         out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name,
                     *side_option(side_by_side)])  # fmt: skip

@@ -104,20 +104,29 @@ class _Context:
         return self.space.is_clear(x, y, r + GAP) and self.discs.free(x, y, r)
 
 
-def sample(scenario: Scenario, rng: np.random.Generator, n_robots: int = 1) -> EpisodeLayout:
+def sample(
+    scenario: Scenario, rng: np.random.Generator, n_robots: int = 1, route: int | None = None
+) -> EpisodeLayout:
     """One episode layout drawn from ``scenario`` with ``rng`` (see the module docstring),
     for ``n_robots`` robots of ``scenario.robot_radius`` [m].
 
-    One robot starts from ``scenario.robot``; several from ``scenario.robots[:n_robots]``
-    (more than ``scenario.max_robots`` is an :class:`~srpb_gym.errors.InputError`, key
-    ``n_robots``). ``layout.goal_tolerance`` is the first robot's. ``layout.walls`` is the
+    One robot starts from ``scenario.robot``, or with ``route=i`` from
+    ``scenario.robots[i]``; several from ``scenario.robots[:n_robots]`` (more than
+    ``scenario.max_robots`` is an :class:`~srpb_gym.errors.InputError`, key ``n_robots``;
+    a ``route`` the scenario has no entry for, key ``route``). ``layout.goal_tolerance``
+    is the first robot's. ``layout.walls`` is the
     scenario's read-only wall array (shared, not copied). A scenario that did not go
     through :func:`~srpb_gym.scenarios.validate.validate` for its robot radius has its free
     space computed on every call (slow); load scenarios with ``load_scenario``.
     """
     specs = scenario.robot_specs(n_robots)
+    keys = tuple(Scenario.robot_key(i, n_robots) for i in range(n_robots))
+    if route is not None:
+        if n_robots != 1:
+            raise InputError("a route is for a single robot", key="route")
+        specs, keys = (scenario.route_spec(route),), (f"robots[{route}]",)
     ctx = _Context(scenario, free_space_of(scenario), rng)
-    robots = _robots(ctx, specs)
+    robots = _robots(ctx, specs, keys, between=n_robots > 1 or route is not None)
     for robot in robots:
         ctx.discs.add(robot.start[0], robot.start[1], scenario.robot_radius + ROBOT_GAP - GAP)
     formations = _formations(ctx, [robot.goal[:2] for robot in robots])
@@ -163,29 +172,35 @@ def _yaw(ctx: _Context, spec: YawSpec, towards: float) -> float:
     return towards if spec.towards_goal else float(wrap_angle(ctx.uniform(spec.range)))
 
 
-def _robots(ctx: _Context, specs: tuple[RobotSpec, ...]) -> tuple[RobotLayout, ...]:
-    """The robots' starts and goals, robot i from ``specs[i]``, each clear of the others';
-    several robots are all drawn again when one of them does not fit."""
+def _robots(
+    ctx: _Context, specs: tuple[RobotSpec, ...], keys: tuple[str, ...], between: bool
+) -> tuple[RobotLayout, ...]:
+    """The robots' starts and goals, robot i from ``specs[i]`` (its entry's key
+    ``keys[i]``), each clear of the others; several robots are all drawn again when one of
+    them does not fit. ``between``: each start and goal in a component of the free space
+    that both of its entry's places meet (else those of the free space's own robot, the
+    scenario's ``robot``)."""
     redraws = 1 if len(specs) == 1 else ROBOTS_TRIES
     for _ in range(redraws - 1):
         try:
-            return _draw_robots(ctx, specs, redraws)
+            return _draw_robots(ctx, specs, keys, between, redraws)
         except InputError:
             pass
-    return _draw_robots(ctx, specs, redraws)
+    return _draw_robots(ctx, specs, keys, between, redraws)
 
 
 def _draw_robots(
-    ctx: _Context, specs: tuple[RobotSpec, ...], redraws: int
-) -> tuple[RobotLayout, ...]:
-    n, space, radius = len(specs), ctx.space, ctx.scenario.robot_radius
+    ctx: _Context, specs: tuple[RobotSpec, ...], keys: tuple[str, ...], between: bool,
+    redraws: int,
+) -> tuple[RobotLayout, ...]:  # fmt: skip
+    space, radius = ctx.space, ctx.scenario.robot_radius
     placed = _Discs()  # the start and goal circles of the robots drawn so far
     out = []
-    for i, spec in enumerate(specs):
+    for spec, key in zip(specs, keys):
         labels = space.robot_labels
-        if n > 1:
+        if between:
             labels = space.labels_between(spec.start.place, spec.goal.place)
-        robot = _robot(ctx, spec, Scenario.robot_key(i, n), labels, placed, redraws)
+        robot = _robot(ctx, spec, key, labels, placed, redraws)
         for x, y, _ in (robot.start, robot.goal):
             placed.add(x, y, radius)
         out.append(robot)

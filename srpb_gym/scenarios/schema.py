@@ -215,6 +215,16 @@ class Scenario:
             )
         return (self.robot,) if n_robots == 1 else self.robots[: int(n_robots)]
 
+    def route_spec(self, route: int) -> RobotSpec:
+        """The entry ``robots[route]`` that a single robot drives (an :class:`InputError`,
+        key ``route``, when the scenario has no such entry)."""
+        whole = isinstance(route, numbers.Integral) and not isinstance(route, bool)
+        if not whole or not 0 <= route < len(self.robots):
+            places = (f"its robots entries 0-{len(self.robots) - 1}" if self.robots
+                      else "no robots entries")  # fmt: skip
+            raise InputError(f"scenario {self.name!r} has {places}, got {route!r}", key="route")
+        return self.robots[int(route)]
+
     @staticmethod
     def robot_key(index: int, n_robots: int) -> str:
         """The dotted key of robot ``index``'s entry: ``robot`` alone, else ``robots[i]``."""
