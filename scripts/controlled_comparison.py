@@ -49,6 +49,8 @@ from srpb_gym.models import model_path
 from srpb_gym.seeds import TEST
 
 METRICS = ("m_psi", "m_fsi", "m_dir")
+#: the settings of a shipped model's card that its run's config.yaml has, and its checkpoint
+CARD_KEYS = ("algo", "env", "reward", "env_kwargs", "seed", "hyperparams", "checkpoint")
 RESAMPLES = 10_000
 
 
@@ -66,7 +68,8 @@ def run_config(run: Path) -> dict[str, Any]:
     model's card (an error naming the run if neither)."""
     shipped = shipped_folder(run)
     if shipped is not None:
-        return json.loads((shipped / "card.json").read_text(encoding="utf-8"))
+        card = json.loads((shipped / "card.json").read_text(encoding="utf-8"))
+        return {key: card[key] for key in CARD_KEYS if key in card}
     path = run / "config.yaml"
     if not path.is_file():
         raise InputError("no config.yaml: not a srpb-gym train run folder (nor a shipped "

@@ -85,7 +85,8 @@ def test_a_shipped_model_stands_for_its_run(tmp_path):
 
     name = "ppo-fformation-task"
     config = cc.run_config(Path(name))
-    assert config == card(name) and config["seed"] == 0 and "hyperparams" in config
+    assert config == {key: card(name)[key] for key in cc.CARD_KEYS}
+    assert config["seed"] == 0 and config["env"] == "SRPB-FFormation-v0"
     model, note = cc.checkpoint_of(Path(name), "best")  # its card: the best checkpoint
     assert model.endswith(f"{name}/model.zip") and note is None
     model, note = cc.checkpoint_of(Path(name), "final")

@@ -161,3 +161,28 @@ def test_a_shipped_multi_robot_model_acts_for_every_robot(name):
         assert all(par.action_space(a).contains(v) for a, v in actions.items())
         obs, *_ = par.step(actions)
     par.close()
+
+
+def test_the_card_names_the_run_its_initial_model_comes_from(tmp_path):
+    run = tmp_path / "routes"
+    (run / "best").mkdir(parents=True)
+    (run / "command.txt").write_text("srpb-gym train --env SRPB-Crowd-v0 --init ppo-crowd-srpb\n")
+    info = {"steps": 1007616, "wall_time_s": 874.4, "init": {"model": "/x/ppo/model.zip"}}
+    (run / "run.json").write_text(json.dumps(info))
+    for model in (run / "best" / "model.zip", run / "model.zip"):  # best/ or the final one
+        stage = ship_multi.first_stage(model)
+        assert stage == {
+            "command": "srpb-gym train --env SRPB-Crowd-v0 --init ppo-crowd-srpb",
+            "steps": 1007616,
+            "wall_time_s": 874.4,
+            "init": "/x/ppo/model.zip",
+        }
+    assert ship_multi.first_stage(tmp_path / "shipped" / "model.zip") is None
+    init = {"model": "routes/best/model.zip", "steps": 700000, "run": stage}
+    assert ship_multi._start_text(init) == (
+        "the trained model `routes/best/model.zip` after 700,000 steps, of the run `srpb-gym "
+        "train --env SRPB-Crowd-v0 --init ppo-crowd-srpb` (1,007,616 steps in 14.6 min, from "
+        "`/x/ppo/model.zip`)"
+    )
+    assert ship_multi._start_text({**init, "run": None}).endswith("after 700,000 steps")
+    assert ship_multi._start_text(None) == "random"

@@ -155,6 +155,10 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
     for file in ("model.zip", "vecnormalize.npz"):
         shutil.copyfile(run / file, target / file)
     init = info.get("init")
+    if init:
+        init = {**init, "model": _relative(init["model"]),
+                "vecnormalize": init["vecnormalize"] and _relative(init["vecnormalize"]),
+                "run": first_stage(Path(init["model"]))}  # fmt: skip
     card = {
         "name": name, "algo": "PPO", "env": env_id, "reward": info["reward"], "robots": robots,
         "env_kwargs": env_kwargs, "seed": info["seed"],
@@ -162,10 +166,7 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
         "checkpoint": "final", "validation": None, "hyperparams": info["hyperparams"],
         "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
                      "envs": info["envs"], "machine": cpu(), "command": info["command"],
-                     "side_by_side": side_by_side,
-                     "init": init and {**init, "model": _relative(init["model"]),
-                                       "vecnormalize": init["vecnormalize"]
-                                       and _relative(init["vecnormalize"])}},
+                     "side_by_side": side_by_side, "init": init},
         "test": {"episodes": episodes, "seed": seed, "seed_range": _range_name(seed, episodes),
                  "robots": robots, "envs": env_ids, "env_kwargs": eval_kwargs,
                  "warmup": TEST_WARMUP, "baselines": list(baselines), "results": results,
@@ -176,6 +177,34 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
     (target / "card.json").write_text(json.dumps(card, indent=2) + "\n", encoding="utf-8")
     (target / "card.md").write_text(card_markdown(name, card), encoding="utf-8")
     return card
+
+
+def first_stage(model: Path) -> dict[str, Any] | None:
+    """The ``srpb-gym train`` run that the initial model ``model`` comes from (its
+    ``best/`` checkpoint or its final model): its command, steps, wall time and the model
+    it started from; ``None`` when ``model`` lies in no such run (a shipped model)."""
+    for folder in (model.parent, model.parent.parent):
+        if (folder / "run.json").is_file() and (folder / "command.txt").is_file():
+            info = json.loads((folder / "run.json").read_text(encoding="utf-8"))
+            init = info.get("init") or {}
+            return {"command": (folder / "command.txt").read_text(encoding="utf-8").strip(),
+                    "steps": info.get("steps"), "wall_time_s": info.get("wall_time_s"),
+                    "init": init.get("model") and _relative(init["model"])}  # fmt: skip
+    return None
+
+
+def _start_text(init: dict[str, Any] | None) -> str:
+    """The card's line on the initial weights: a model, and the run it comes from."""
+    if not init:
+        return "random"
+    text = f"the trained model `{init['model']}` after {init['steps']:,} steps"
+    run = init.get("run")
+    if run:
+        text += (
+            f", of the run `{run['command']}` ({run['steps']:,} steps in "
+            f"{run['wall_time_s'] / 60:.1f} min, from `{run['init'] or 'random weights'}`)"
+        )
+    return text
 
 
 def _percent(f: dict[str, Any], key: str) -> str:
@@ -198,9 +227,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
     """The card's text, from its data."""
     t, test = card["training"], card["test"]
     n = card["robots"]
-    init = t["init"]
-    start = (f"the trained model `{init['model']}` after {init['steps']:,} steps"
-             if init else "random")  # fmt: skip
+    start = _start_text(t["init"])
     last = test["seed"] + test["episodes"] - 1
     lines = [
         f"# {name}", "",
