@@ -78,8 +78,9 @@ def run_config(run: Path) -> dict[str, Any]:
 
 
 def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
-    """The model file of ``run`` to evaluate (``best/`` or the final ``model.zip``), and a
-    line to print when a shipped model's checkpoint is not ``checkpoint``."""
+    """The model of ``run`` to evaluate (``best/`` or the final ``model.zip``; a shipped
+    model's folder, which the tables name after it), and a line to print when a shipped
+    model's checkpoint is not ``checkpoint``."""
     shipped = shipped_folder(run)
     if shipped is None:
         return str(run / "best") if checkpoint == "best" else str(run / "model.zip"), None
@@ -87,7 +88,7 @@ def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
     note = None
     if not chosen.startswith(checkpoint):
         note = f"{run}: the shipped model is its run's {chosen or 'unnamed'} checkpoint"
-    return str(shipped / "model.zip"), note
+    return str(shipped), note
 
 
 def check_pairs(a: list[Path], b: list[Path]) -> list[str]:
