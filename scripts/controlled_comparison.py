@@ -56,8 +56,9 @@ RESAMPLES = 10_000
 
 def shipped_folder(run: Path) -> Path | None:
     """The folder of the shipped model ``run`` names (its name or its folder), else None."""
-    if not run.exists() and model_path(str(run)) is not None:
-        return Path(str(model_path(str(run)))).parent
+    model = None if run.exists() else model_path(str(run))
+    if model is not None:
+        return model.parent
     if (run / "card.json").is_file() and (run / "model.zip").is_file():
         return run
     return None
