@@ -85,7 +85,8 @@ def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
     shipped = shipped_folder(run)
     if shipped is None:
         return str(run / "best") if checkpoint == "best" else str(run / "model.zip"), None
-    chosen = str(run_config(run).get("checkpoint", ""))
+    card = json.loads((shipped / "card.json").read_text(encoding="utf-8"))
+    chosen = str(card.get("checkpoint", ""))
     note = None
     if not chosen.startswith(checkpoint):
         note = f"{run}: the shipped model is its run's {chosen or 'unnamed'} checkpoint"
