@@ -64,12 +64,17 @@ def shipped_folder(run: Path) -> Path | None:
     return None
 
 
+def _card(shipped: Path) -> dict[str, Any]:
+    """The ``card.json`` of the shipped model in folder ``shipped``."""
+    return json.loads((shipped / "card.json").read_text(encoding="utf-8"))
+
+
 def run_config(run: Path) -> dict[str, Any]:
     """The ``config.yaml`` of a ``srpb-gym train`` run, or the settings on a shipped
     model's card (an error naming the run if neither)."""
     shipped = shipped_folder(run)
     if shipped is not None:
-        card = json.loads((shipped / "card.json").read_text(encoding="utf-8"))
+        card = _card(shipped)
         return {key: card[key] for key in CARD_KEYS if key in card}
     path = run / "config.yaml"
     if not path.is_file():
@@ -85,8 +90,7 @@ def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
     shipped = shipped_folder(run)
     if shipped is None:
         return str(run / "best") if checkpoint == "best" else str(run / "model.zip"), None
-    card = json.loads((shipped / "card.json").read_text(encoding="utf-8"))
-    chosen = str(card.get("checkpoint", ""))
+    chosen = str(_card(shipped).get("checkpoint", ""))
     note = None
     if not chosen.startswith(checkpoint):
         note = f"{run}: the shipped model is its run's {chosen or 'unnamed'} checkpoint"
