@@ -25,6 +25,16 @@ difference in points and the relative change of each ground-truth metric's mean,
 percentile bootstrap 95 % intervals over the episodes (10,000 resamples, default_rng(0))
 and the Wilcoxon signed-rank test of the episode differences. ``report.md`` and
 ``report.json`` in ``--out`` hold the same.
+
+With ``--robots N`` the runs are ``python -m training.multi_robot`` runs (or a shipped
+policy for several robots), each policy drives all N robots of an episode, and the runs'
+final models are compared (the multi-robot runs keep no ``best/``). The rates of the runs
+are over every robot's episode (with ``hit a robot``: first collisions with another robot,
+and the success of each robot); the pairs and the pooled effects are over episodes, each
+episode's values the mean over its robots (the robots of one episode share it, so their
+values are not independent), and a pair's success difference is tested with the Wilcoxon
+signed-rank test of the episodes' differences in the share of robots that reached their
+goals (McNemar with one robot).
 """
 
 from __future__ import annotations
@@ -46,11 +56,14 @@ from srpb_gym.evaluation.intervals import wilson
 from srpb_gym.evaluation.paired import mcnemar, signed_rank
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.models import model_path
+from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.seeds import TEST
 
 METRICS = ("m_psi", "m_fsi", "m_dir")
 #: the settings of a shipped model's card that its run's config.yaml has, and its checkpoint
-CARD_KEYS = ("algo", "env", "reward", "env_kwargs", "seed", "hyperparams", "checkpoint")
+CARD_KEYS = ("algo", "env", "reward", "env_kwargs", "seed", "hyperparams", "checkpoint", "robots")
+#: the settings of a multi-robot run's run.json that the comparison reads
+MULTI_KEYS = ("reward", "env_kwargs", "seed", "hyperparams", "robots", "init")
 RESAMPLES = 10_000
 
 
@@ -76,6 +89,12 @@ def run_config(run: Path) -> dict[str, Any]:
     if shipped is not None:
         card = _card(shipped)
         return {key: card[key] for key in CARD_KEYS if key in card}
+    multi = run / "run.json"
+    if multi.is_file() and not (run / "config.yaml").is_file():
+        info = json.loads(multi.read_text(encoding="utf-8"))
+        ids = {scenario: env_id for env_id, scenario in SCENARIO_IDS.items()}
+        config = {key: info[key] for key in MULTI_KEYS if key in info}
+        return {"env": ids.get(info.get("scenario"), info.get("scenario")), **config}
     path = run / "config.yaml"
     if not path.is_file():
         raise InputError("no config.yaml: not a srpb-gym train run folder (nor a shipped "
@@ -88,6 +107,9 @@ def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
     model's folder, which the tables name after it), and a line to print when a shipped
     model's checkpoint is not ``checkpoint``."""
     shipped = shipped_folder(run)
+    if shipped is None and (run / "run.json").is_file() and not (run / "best").exists():
+        note = f"{run}: a multi-robot run, its final model" if checkpoint == "best" else None
+        return str(run / "model.zip"), note
     if shipped is None:
         return str(run / "best") if checkpoint == "best" else str(run / "model.zip"), None
     chosen = str(_card(shipped).get("checkpoint", ""))
@@ -106,7 +128,7 @@ def check_pairs(a: list[Path], b: list[Path]) -> list[str]:
     notes = []
     for ra, rb in zip(a, b):
         ca, cb = run_config(ra), run_config(rb)
-        for key in ("seed", "env", "hyperparams"):
+        for key in ("seed", "env", "hyperparams", "robots"):
             if ca.get(key) != cb.get(key):
                 raise InputError(f"{ra} and {rb} differ in {key}: {ca.get(key)!r} against "
                                  f"{cb.get(key)!r}")  # fmt: skip
@@ -123,6 +145,18 @@ def values(rows: list[EpisodeResult], metric: str, gt: bool) -> np.ndarray:
     if metric == "success":
         return np.array([float(r.is_success) for r in rows])
     return np.array([r.value(metric, gt) for r in rows], dtype=np.float64)
+
+
+def per_episode(v: np.ndarray, robots: int) -> np.ndarray:
+    """Robot-episode values (by seed, then robot) as one value per episode: the mean over
+    its robots where defined (NaN where none is)."""
+    if robots == 1:
+        return v
+    v = v.reshape(-1, robots)
+    defined = np.isfinite(v)
+    count = defined.sum(axis=1)
+    total = np.where(defined, v, 0.0).sum(axis=1)
+    return np.divide(total, count, out=np.full(count.shape, np.nan), where=count > 0)
 
 
 def bootstrap(a: np.ndarray, b: np.ndarray, statistic: Any) -> tuple[float, float]:
@@ -159,8 +193,8 @@ def effect(a: np.ndarray, b: np.ndarray, metric: str) -> dict[str, Any]:
             "effect": float(stat(a, b)), "ci": [low, high], "p": signed_rank(b - a)}  # fmt: skip
 
 
-def run_row(label: str, rows: list[EpisodeResult]) -> dict[str, Any]:
-    """The figures of one run or planner."""
+def run_row(label: str, rows: list[EpisodeResult], robots: int = 1) -> dict[str, Any]:
+    """The figures of one run or planner (rates over every robot's episode)."""
     n = len(rows)
     wins = sum(r.is_success for r in rows)
     low, high = wilson(wins, n) or (float("nan"), float("nan"))
@@ -169,6 +203,13 @@ def run_row(label: str, rows: list[EpisodeResult]) -> dict[str, Any]:
     row = {"label": label, "episodes": n, "success": 100.0 * wins / n, "ci": [low, high],
            "collision": 100.0 * len(collided) / n,
            "robot_caused": 100.0 * by_robot / n}  # fmt: skip
+    if robots > 1:
+        hit = sum(1 for r in collided if r.first_collision and r.first_collision.kind == "robot")
+        row["hit_robot"] = 100.0 * hit / n
+        row["success_by_robot"] = [
+            100.0 * float(np.mean([r.is_success for r in rows if r.robot == k]))
+            for k in range(robots)
+        ]
     for metric in METRICS:
         for gt, tag in ((True, "gt"), (False, "tracked")):
             v = values(rows, metric, gt)
@@ -179,36 +220,45 @@ def run_row(label: str, rows: list[EpisodeResult]) -> dict[str, Any]:
 
 
 def analyse(results: list[EpisodeResult], a: list[str], b: list[str], planners: list[str],
-            names: tuple[str, str]) -> dict[str, Any]:  # fmt: skip
-    """Every figure of the report from the evaluated episodes."""
+            names: tuple[str, str], robots: int = 1) -> dict[str, Any]:  # fmt: skip
+    """Every figure of the report from the evaluated episodes (of ``robots`` robots each)."""
     by: dict[str, list[EpisodeResult]] = {}
     for r in results:
         by.setdefault(r.planner, []).append(r)
     for rows in by.values():
-        rows.sort(key=lambda r: r.seed)
-    seeds = [r.seed for r in by[a[0]]]
+        rows.sort(key=lambda r: (r.seed, -1 if r.robot is None else r.robot))
+    keys = [(r.seed, r.robot) for r in by[a[0]]]
     for label in [*a, *b, *planners]:
-        if [r.seed for r in by.get(label, [])] != seeds:
+        if [(r.seed, r.robot) for r in by.get(label, [])] != keys:
             raise InputError(f"{label}: not every episode was evaluated; run again to finish")
+    seeds = [seed for seed, _ in keys[::robots]]
     report: dict[str, Any] = {
         "names": list(names),
         "episodes": len(seeds),
+        "robots": robots,
         "seeds": [seeds[0], seeds[-1]],
-        "runs": [run_row(label, by[label]) for label in [*a, *b, *planners]],
+        "runs": [run_row(label, by[label], robots) for label in [*a, *b, *planners]],
     }
+
+    def episode_values(label: str, metric: str) -> np.ndarray:
+        return per_episode(values(by[label], metric, metric != "success"), robots)
+
     pairs = []
     for la, lb in zip(a, b):
-        sa, sb = values(by[la], "success", False), values(by[lb], "success", False)
-        a_only, b_only = int(np.sum((sa == 1) & (sb == 0))), int(np.sum((sa == 0) & (sb == 1)))
-        psi = effect(values(by[la], "m_psi", True), values(by[lb], "m_psi", True), "m_psi")
+        sa, sb = episode_values(la, "success"), episode_values(lb, "success")
+        if robots == 1:
+            a_only, b_only = int(np.sum((sa == 1) & (sb == 0))), int(np.sum((sa == 0) & (sb == 1)))
+            p_success = mcnemar(a_only, b_only)
+        else:
+            p_success = signed_rank(sb - sa)
+        psi = effect(episode_values(la, "m_psi"), episode_values(lb, "m_psi"), "m_psi")
         pairs.append({"a": la, "b": lb, "success": 100.0 * (sb.mean() - sa.mean()),
-                      "p_success": mcnemar(a_only, b_only), "m_psi_gt": psi})  # fmt: skip
+                      "p_success": p_success, "m_psi_gt": psi})  # fmt: skip
     report["pairs"] = pairs
     pooled = {}
     for metric in ("success", *METRICS):
-        gt = metric != "success"
-        ma = np.mean([values(by[label], metric, gt) for label in a], axis=0)
-        mb = np.mean([values(by[label], metric, gt) for label in b], axis=0)
+        ma = np.mean([episode_values(label, metric) for label in a], axis=0)
+        mb = np.mean([episode_values(label, metric) for label in b], axis=0)
         pooled[metric] = effect(ma, mb, metric)
     report["pooled"] = pooled
     return report
@@ -228,18 +278,29 @@ def _interval(ci: list[float]) -> str:
 
 def markdown(report: dict[str, Any]) -> str:
     na, nb = report["names"]
-    lines = [f"{report['episodes']} episodes, seeds {report['seeds'][0]}-{report['seeds'][1]}; "
+    robots = report.get("robots", 1)
+    multi = robots > 1
+    what = "episodes"
+    if multi:
+        what = f"episodes of {robots} robots (rates over every robot's episode)"
+    extra = " hit a robot | success by robot |" if multi else ""
+    lines = [f"{report['episodes']} {what}, seeds {report['seeds'][0]}-{report['seeds'][1]}; "
              "metrics from ground truth (tracked in brackets), mean / median", "",
-             "| run | success | collisions (robot) | m_psi | m_fsi | m_dir |",
-             "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+             f"| run | success | collisions (robot) |{extra} m_psi | m_fsi | m_dir |",
+             "| --- | --- | --- |" + " --- |" * (3 + 2 * multi)]  # fmt: skip
     for row in report["runs"]:
         cells = [f"{_num(row[f'{m}_gt_mean'])} / {_num(row[f'{m}_gt_median'])} "
                  f"({_num(row[f'{m}_tracked_median'])})" for m in METRICS]  # fmt: skip
+        if multi:
+            by_robot = " / ".join(f"{v:.0f}" for v in row["success_by_robot"])
+            cells = [f"{row['hit_robot']:.1f} %", by_robot, *cells]
         lines.append(f"| {row['label']} | {row['success']:.1f} % [{row['ci'][0]:.1f}-"
                      f"{row['ci'][1]:.1f}] | {row['collision']:.1f} % ({row['robot_caused']:.1f} "
                      f"%) | {' | '.join(cells)} |")  # fmt: skip
-    lines += ["", f"Pairs ({nb} against {na}, one training seed each):", "",
-              "| pair | success B - A | McNemar p | mean GT m_psi change | Wilcoxon p |",
+    test = "Wilcoxon p" if multi else "McNemar p"
+    unit = ", episode values the mean over the robots" if multi else ""
+    lines += ["", f"Pairs ({nb} against {na}, one training seed each{unit}):", "",
+              f"| pair | success B - A | {test} | mean GT m_psi change | Wilcoxon p |",
               "| --- | --- | --- | --- | --- |"]  # fmt: skip
     for p in report["pairs"]:
         e = p["m_psi_gt"]
@@ -271,6 +332,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--episodes", type=int, default=200)
     parser.add_argument("--seed", type=int, default=TEST.start)
     parser.add_argument("--workers", type=int, default=1)
+    parser.add_argument("--robots", type=int, default=1, help="robots per episode")
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     try:
@@ -285,12 +347,13 @@ def main(argv: list[str] | None = None) -> int:
         resume = os.path.isfile(os.path.join(args.out, "episodes.csv"))
         config = resolve_config([args.env], planners=args.planner or None, policies=models,
                                 episodes=args.episodes, seed=args.seed, out=args.out,
-                                workers=args.workers, warmup=0, resume=resume)  # fmt: skip
+                                workers=args.workers, warmup=0, resume=resume,
+                                robots=args.robots)  # fmt: skip
         outcome = run_evaluation(config)
         labels = [spec.name for spec in config.planners if spec.policy is not None]
         n = len(args.a)
         report = analyse(outcome.results, labels[:n], labels[n:], list(args.planner),
-                         tuple(args.names))  # fmt: skip
+                         tuple(args.names), args.robots)  # fmt: skip
     except InputError as exc:
         print(f"controlled_comparison: {exc}", file=sys.stderr)
         return 2

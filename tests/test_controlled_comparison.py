@@ -13,12 +13,13 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
 
 
-def episode(planner: str, seed: int, success: bool, psi: float) -> EpisodeResult:
+def episode(planner: str, seed: int, success: bool, psi: float,
+            robot: int | None = None) -> EpisodeResult:  # fmt: skip
     metrics = {"m_psi": psi + 1.0, "m_fsi": 0.0, "m_dir": 0.0}  # tracked: another value
     truth = {"m_psi": psi, "m_fsi": 0.0, "m_dir": 0.0}
     return EpisodeResult(env="SRPB-Crowd-v0", planner=planner, seed=seed, is_success=success,
                          collision=not success, timeout=False, metrics=metrics,
-                         ground_truth=truth)  # fmt: skip
+                         ground_truth=truth, robot=robot)  # fmt: skip
 
 
 def test_effects_by_hand():
@@ -85,7 +86,7 @@ def test_a_shipped_model_stands_for_its_run(tmp_path):
 
     name = "ppo-fformation-task"
     config = cc.run_config(Path(name))
-    assert config == {key: card(name)[key] for key in cc.CARD_KEYS}
+    assert config == {key: card(name)[key] for key in cc.CARD_KEYS if key in card(name)}
     assert config["seed"] == 0 and config["env"] == "SRPB-FFormation-v0"
     model, note = cc.checkpoint_of(Path(name), "best")  # its card: the best checkpoint
     assert Path(model).name == name and (Path(model) / "model.zip").is_file() and note is None
@@ -96,3 +97,59 @@ def test_a_shipped_model_stands_for_its_run(tmp_path):
     # a shipped model is paired as its run is: by seed, environment and hyperparameters
     with pytest.raises(InputError, match="differ in"):
         cc.check_pairs([Path(name)], [run])
+
+
+def test_several_robots_are_compared_by_episode():
+    # 2 robots, 3 episodes; robot-episode m_psi of A and B (B: 0 where robot 1 failed)
+    psi = {"a": [[10, 30], [20, 20], [6, 2]], "b": [[5, 15], [10, float("nan")], [3, 1]]}
+    failed = {("b", 1, 1)}  # B's robot 1 fails in the second episode
+    results = []
+    for label, rows in psi.items():  # shuffled order: sorted by (seed, robot)
+        for seed, pair in reversed(list(enumerate(rows))):
+            for robot, value in enumerate(pair):
+                ok = (label, seed, robot) not in failed
+                results.append(episode(label, 7 + seed, ok, value, robot=robot))
+    report = cc.analyse(results, ["a"], ["b"], [], ("task", "srpb"), robots=2)
+    assert report["episodes"] == 3 and report["robots"] == 2 and report["seeds"] == [7, 9]
+    # episode means: A 20, 20, 4; B 10, 10 (robot 1's NaN left out), 2
+    psi_effect = report["pairs"][0]["m_psi_gt"]
+    assert psi_effect["a"] == pytest.approx(44 / 3) and psi_effect["b"] == pytest.approx(22 / 3)
+    assert psi_effect["effect"] == pytest.approx(-50.0) and psi_effect["n"] == 3
+    # success: 6/6 against 5/6 robot-episodes; by episode 1, 0.5, 1 against 1, 1, 1
+    b_row = report["runs"][1]
+    assert b_row["episodes"] == 6 and b_row["success"] == pytest.approx(500 / 6)
+    assert b_row["success_by_robot"] == [100.0, pytest.approx(200 / 3)]
+    assert report["pairs"][0]["success"] == pytest.approx(-100 / 6)
+    assert report["pooled"]["success"]["effect"] == pytest.approx(-100 / 6)
+    text = cc.markdown(report)
+    assert "3 episodes of 2 robots" in text and "| 100 / 67 |" in text and "Wilcoxon p |" in text
+    # one robot missing from an episode: refused
+    with pytest.raises(InputError, match="b: not every episode"):
+        cc.analyse(results[:-1], ["a"], ["b"], [], ("task", "srpb"), robots=2)
+
+
+def test_a_multi_robot_run_and_a_shipped_policy_for_several_robots(tmp_path):
+    import json
+
+    from srpb_gym.models import card
+
+    name = "ppo-crowd-srpb-3robots"
+    shipped = card(name)
+    run = tmp_path / "multi"
+    run.mkdir()
+    info = {"scenario": "crowd", "robots": 3, "seed": 0, "reward": "task", "envs": 2,
+            "hyperparams": shipped["hyperparams"], "env_kwargs": {}}  # fmt: skip
+    (run / "run.json").write_text(json.dumps(info))
+    config = cc.run_config(run)
+    assert config["env"] == "SRPB-Crowd-v0" and config["robots"] == 3
+    assert "envs" not in config  # the comparison reads only what it pairs and prints
+    # a multi-robot run keeps its final model only
+    assert cc.checkpoint_of(run, "final") == (str(run / "model.zip"), None)
+    model, note = cc.checkpoint_of(run, "best")
+    assert model == str(run / "model.zip") and "its final model" in note
+    notes = cc.check_pairs([run], [Path(name)])
+    assert "differ in" in notes[0] and "reward" in notes[0]
+    info["robots"] = 2
+    (run / "run.json").write_text(json.dumps(info))
+    with pytest.raises(InputError, match="differ in robots"):
+        cc.check_pairs([run], [Path(name)])

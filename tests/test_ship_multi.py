@@ -186,3 +186,21 @@ def test_the_card_names_the_run_its_initial_model_comes_from(tmp_path):
     )
     assert ship_multi._start_text({**init, "run": None}).endswith("after 700,000 steps")
     assert ship_multi._start_text(None) == "random"
+
+
+def test_the_task_twin_of_the_shared_policy_differs_in_its_reward_and_start_only():
+    srpb = commands("ppo-crowd-srpb-3robots", [1], 1, ship=False)
+    task = commands("ppo-crowd-task-3robots", [1], 1, ship=False)
+    assert len(srpb) == len(task) == 2
+    for a, b in zip(srpb, task):
+        # the same stages, budgets and hyperparameters
+        assert a[a.index("--steps") + 1] == b[b.index("--steps") + 1]
+        assert a[a.index("--hyperparams") :] == b[b.index("--hyperparams") :]
+        assert a[a.index("--reward") + 1] == "srpb" and b[b.index("--reward") + 1] == "task"
+    # each from the crowd specialist of its own preset, paid as that specialist is
+    assert task[0][task[0].index("--init") + 1] == "ppo-crowd-task"
+    single = commands("ppo-crowd-task", [1], 1, ship=False)[0]
+    kwargs = single[single.index("--env-kwargs") + 1 : single.index("--hyperparams")]
+    train = task[1]
+    assert train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")] == kwargs
+    assert not any("psi" in k for k in kwargs)

@@ -170,6 +170,13 @@ MULTI_RECIPES: dict[str, MultiRecipe] = {
         ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
         routes_steps=1_000_000,
     ),
+    # its controlled twin: the same recipe from the crowd specialist of the task preset,
+    # paid the task preset (with the same collision penalty); not shipped
+    "ppo-crowd-task-3robots": MultiRecipe(
+        "crowd", 3, 2, 2_000_000, "ppo-crowd-task",
+        ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
+        routes_steps=1_000_000,
+    ),
 }  # fmt: skip
 
 
