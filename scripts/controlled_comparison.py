@@ -53,10 +53,11 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.harness import run_evaluation
 from srpb_gym.evaluation.intervals import wilson
+from srpb_gym.evaluation.multi import robot_hits, success_by_robot
 from srpb_gym.evaluation.paired import mcnemar, signed_rank
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.models import model_path
-from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.registration import ENV_IDS
 from srpb_gym.seeds import TEST
 
 METRICS = ("m_psi", "m_fsi", "m_dir")
@@ -92,9 +93,8 @@ def run_config(run: Path) -> dict[str, Any]:
     multi = run / "run.json"
     if multi.is_file() and not (run / "config.yaml").is_file():
         info = json.loads(multi.read_text(encoding="utf-8"))
-        ids = {scenario: env_id for env_id, scenario in SCENARIO_IDS.items()}
         config = {key: info[key] for key in MULTI_KEYS if key in info}
-        return {"env": ids.get(info.get("scenario"), info.get("scenario")), **config}
+        return {"env": ENV_IDS.get(info.get("scenario"), info.get("scenario")), **config}
     path = run / "config.yaml"
     if not path.is_file():
         raise InputError("no config.yaml: not a srpb-gym train run folder (nor a shipped "
@@ -204,12 +204,8 @@ def run_row(label: str, rows: list[EpisodeResult], robots: int = 1) -> dict[str,
            "collision": 100.0 * len(collided) / n,
            "robot_caused": 100.0 * by_robot / n}  # fmt: skip
     if robots > 1:
-        hit = sum(1 for r in collided if r.first_collision and r.first_collision.kind == "robot")
-        row["hit_robot"] = 100.0 * hit / n
-        row["success_by_robot"] = [
-            100.0 * float(np.mean([r.is_success for r in rows if r.robot == k]))
-            for k in range(robots)
-        ]
+        row["hit_robot"] = 100.0 * robot_hits(rows) / n
+        row["success_by_robot"] = [100.0 * rate for rate in success_by_robot(rows)]
     for metric in METRICS:
         for gt, tag in ((True, "gt"), (False, "tracked")):
             v = values(rows, metric, gt)

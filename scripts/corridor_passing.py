@@ -31,11 +31,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 import srpb_gym  # noqa: F401  (registers the environments)
+from srpb_gym.evaluation.intervals import bootstrap_mean
 from srpb_gym.knowledge import Knowledge
-from srpb_gym.planners.base import Planner, command_to_action, heading_error
+from srpb_gym.planners.base import Planner, command_to_action, heading_error, knowledge_for
 from srpb_gym.seeds import TEST
 
-RESAMPLES = 10_000
 MIDDLE = 1.1  # m, the corridor's middle line
 
 
@@ -86,14 +86,6 @@ class LaneDriver(Planner):
         return command_to_action(speed, 0.0, omega, robot)
 
 
-def bootstrap_mean(v: NDArray[np.float64]) -> tuple[float, float]:
-    """Percentile bootstrap 95 % interval of the mean."""
-    rng = np.random.default_rng(0)
-    means = v[rng.integers(0, v.size, (RESAMPLES, v.size))].mean(axis=1)
-    low, high = np.percentile(means, [2.5, 97.5])
-    return float(low), float(high)
-
-
 def run(driver: LaneDriver, episodes: int, seed: int) -> dict[str, Any]:
     """The driver's figures over ``episodes`` episodes from ``seed``."""
     env = gym.make("SRPB-Corridor-v0")
@@ -101,10 +93,10 @@ def run(driver: LaneDriver, episodes: int, seed: int) -> dict[str, Any]:
     for k in range(episodes):
         obs, _ = env.reset(seed=seed + k)
         task = env.unwrapped
-        driver.reset(task.knowledge(ground_truth=True))
+        driver.reset(knowledge_for(driver, task.knowledge))
         present = 0.0
         while True:
-            knowledge = task.knowledge(ground_truth=True)
+            knowledge = knowledge_for(driver, task.knowledge)
             present += knowledge.control_dt if len(knowledge.tracks.xy) else 0.0
             obs, _, terminated, truncated, info = env.step(driver.act(obs, knowledge))
             if terminated or truncated:
@@ -117,7 +109,7 @@ def run(driver: LaneDriver, episodes: int, seed: int) -> dict[str, Any]:
     env.close()
     v = np.asarray(psi, dtype=np.float64)
     return {"success": 100.0 * wins / episodes, "m_psi": float(v.mean()),
-            "ci": bootstrap_mean(v), "integral": float(np.mean(integral)),
+            "ci": bootstrap_mean(v) or (math.nan, math.nan), "integral": float(np.mean(integral)),
             "m_mef": float(np.mean(mef)), "m_obs": float(np.mean(obs_time))}  # fmt: skip
 
 

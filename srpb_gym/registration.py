@@ -21,6 +21,8 @@ SCENARIO_IDS: dict[str, str] = {
     "SRPB-Crowd-v0": "crowd",
     "SRPB-Doorway-v0": "doorway",
 }
+#: packaged scenario -> its environment id
+ENV_IDS: dict[str, str] = {scenario: env_id for env_id, scenario in SCENARIO_IDS.items()}
 CUSTOM_ID = "SRPB-Custom-v0"
 #: a scenario drawn at every reset (srpb_gym.mix.SRPBMixEnv)
 MIX_ID = "SRPB-Mix-v0"

@@ -42,7 +42,7 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.models.normalization import save_vecnormalize
 from srpb_gym.models.record import record_observation
-from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.registration import ENV_IDS
 from srpb_gym.reward_terms import preset_names
 from srpb_gym.scenarios import load_scenario
 from srpb_gym.training.config import PPO_KEYS, TrainConfig, resolve
@@ -55,7 +55,7 @@ USED_KEYS = frozenset({*PPO_KEYS, "net_arch", "activation_fn", "torch_threads"})
 
 def env_id_of(scenario: str) -> str:
     """The Gymnasium id of a packaged scenario (its configuration entry), else the name."""
-    return next((k for k, v in SCENARIO_IDS.items() if v == scenario), scenario)
+    return ENV_IDS.get(scenario, scenario)
 
 
 def check_arguments(scenario: str, robots: int, envs: int, steps: int, seed: int,

@@ -37,7 +37,7 @@ import subprocess
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from srpb_gym.models import model_names
 
@@ -159,25 +159,23 @@ class MultiRecipe:
     routes_steps: int = 0
 
 
+#: the crowd specialist with its own PPO settings fine-tuned alone on every route of the
+#: scenario's robots list, then among 2 other robots (2M robot-steps: after 1M, robot 2
+#: reached its goal in 80 % of 60 validation episodes, after 2M in 90 %; a run of 4M
+#: robot-steps fell back to 80 %, with 2.2 % of robot-episodes collisions)
+CROWD_3ROBOTS = MultiRecipe(
+    "crowd", 3, 2, 2_000_000, "ppo-crowd-srpb",
+    ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
+    routes_steps=1_000_000,
+)  # fmt: skip
+
 #: the shared policies for several robots, by name (``ppo-<scenario>-<preset>-<N>robots``)
 MULTI_RECIPES: dict[str, MultiRecipe] = {
-    # the crowd specialist with its own PPO settings fine-tuned alone on every route of
-    # the scenario's robots list, then among 2 other robots (2M robot-steps: after 1M,
-    # robot 2 reached its goal in 80 % of 60 validation episodes, after 2M in 90 %; a run
-    # of 4M robot-steps fell back to 80 %, with 2.2 % of robot-episodes collisions)
-    "ppo-crowd-srpb-3robots": MultiRecipe(
-        "crowd", 3, 2, 2_000_000, "ppo-crowd-srpb",
-        ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
-        routes_steps=1_000_000,
-    ),
+    "ppo-crowd-srpb-3robots": CROWD_3ROBOTS,
     # its controlled twin: the same recipe from the crowd specialist of the task preset,
     # paid the task preset (with the same collision penalty); not shipped
-    "ppo-crowd-task-3robots": MultiRecipe(
-        "crowd", 3, 2, 2_000_000, "ppo-crowd-task",
-        ("learning_rate=1e-4", "n_steps=1024", "batch_size=512", *SMALL_STEPS, *LONG_HORIZON),
-        routes_steps=1_000_000,
-    ),
-}  # fmt: skip
+    "ppo-crowd-task-3robots": replace(CROWD_3ROBOTS, init="ppo-crowd-task"),
+}
 
 
 def teachers_of(name: str) -> tuple[tuple[str, str], ...]:

@@ -40,6 +40,7 @@ import numpy as np
 
 from srpb_gym.evaluation.harness import cpu, run_evaluation
 from srpb_gym.evaluation.intervals import wilson
+from srpb_gym.evaluation.multi import robot_hits, success_by_robot
 from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.reward_terms import preset_names
@@ -79,8 +80,7 @@ def check_name(name: str, robots: int) -> Path:
 def summarize(rows: Sequence[Any]) -> dict[str, Any]:
     """The figures of one planner's robot episodes (:class:`EpisodeResult` rows)."""
     n = len(rows)
-    hit_robot = sum(r.first_collision is not None and r.first_collision.kind == "robot"
-                    for r in rows)  # fmt: skip
+    hit_robot = robot_hits(rows)
     caused = sum(r.first_collision is not None and r.first_collision.by == "robot" for r in rows)
     out: dict[str, Any] = {"episodes": n, "robots": len({r.robot for r in rows})}
     for key, count in (("success", sum(r.is_success for r in rows)),
@@ -90,10 +90,7 @@ def summarize(rows: Sequence[Any]) -> dict[str, Any]:
         interval = wilson(count, n)
         out[key] = count / n
         out[f"{key}_ci"] = [interval[0] / 100, interval[1] / 100] if interval else None
-    out["success_by_robot"] = [
-        float(np.mean([r.is_success for r in rows if r.robot == robot]))
-        for robot in sorted({r.robot for r in rows})
-    ]
+    out["success_by_robot"] = success_by_robot(rows)
     for gt, prefix in ((True, "gt_"), (False, "")):
         for m in METRICS:
             values = [r.value(m, gt) for r in rows]

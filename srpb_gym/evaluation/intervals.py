@@ -119,6 +119,14 @@ def bootstrap_median(
     return _bootstrap(values, lambda r: np.median(r, axis=1), resamples, seed)
 
 
+def bootstrap_mean(
+    values: Sequence[float] | np.ndarray, resamples: int = RESAMPLES, seed: int = SEED
+) -> Interval | None:
+    """The percentile bootstrap 95 % interval of the mean of the finite ``values``;
+    ``None`` for fewer than :data:`MIN_BOOTSTRAP` of them."""
+    return _bootstrap(values, lambda r: r.mean(axis=1), resamples, seed)
+
+
 def holm(pvalues: Sequence[float | None]) -> list[float | None]:
     """Holm's step-down adjusted p-values of one family of tests, in the order given.
 

@@ -14,14 +14,27 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
+
+import numpy as np
 
 from srpb_gym.evaluation.data import EpisodeResult, EvalConfig, PlannerSpec, Task
 from srpb_gym.evaluation.figures import VideoWriter
 from srpb_gym.metrics import METRIC_NAMES
 from srpb_gym.planners import Planner, knowledge_for
 from srpb_gym.sim.contact import FIRST_PREFIX, Collision
+
+
+def robot_hits(rows: Sequence[EpisodeResult]) -> int:
+    """The robot episodes whose first collision was with another robot."""
+    return sum(r.first_collision is not None and r.first_collision.kind == "robot" for r in rows)
+
+
+def success_by_robot(rows: Sequence[EpisodeResult]) -> list[float]:
+    """The success rate (0-1) of each robot index among ``rows``, by index."""
+    return [float(np.mean([r.is_success for r in rows if r.robot == robot]))
+            for robot in sorted({r.robot for r in rows})]  # fmt: skip
 
 
 def build_planners(spec: PlannerSpec, agents: list[str]) -> dict[str, Planner]:

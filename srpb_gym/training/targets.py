@@ -9,7 +9,7 @@ import shlex
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from srpb_gym.registration import CUSTOM_ID, MIX_ID, MIX_SCENARIOS, SCENARIO_IDS
+from srpb_gym.registration import CUSTOM_ID, ENV_IDS, MIX_ID, MIX_SCENARIOS
 
 #: env kwargs of training that an evaluation of the model leaves out: the reward (which
 #: evaluation does not use), the time limit (evaluations run the scenario's), and what
@@ -48,13 +48,9 @@ def eval_setup(
     return [env_id], kwargs
 
 
-#: the registered id of each packaged scenario, by name
-_SCENARIO_ID = {name: env_id for env_id, name in SCENARIO_IDS.items()}
-
-
 def _eval_target(scenario: str | os.PathLike[str]) -> str:
     """The id of a packaged scenario's name, or a scenario file's path."""
-    return _SCENARIO_ID.get(os.fspath(scenario), os.fspath(scenario))
+    return ENV_IDS.get(os.fspath(scenario), os.fspath(scenario))
 
 
 def eval_env_ids(env_id: str) -> list[str]:
