@@ -149,13 +149,12 @@ def _discounted_return(env_id: str, planner: str | None, seed: int) -> float:
 
 @pytest.mark.parametrize("env_id", SCENARIO_IDS)
 def test_going_to_the_goal_pays_more_than_waiting(env_id: str) -> None:
-    """With the `srpb` weights each scenario pays (the preset's, five times its social and
-    obs weights in corridor and fformation) a learner that discounts by PRESET_GAMMA values
-    driving to the goal (`dwa`, which reaches it on these seeds) above standing still until
-    the time limit. Five times the social and obs weights break this among crossing walkers
-    (crossing, crowd, doorway; docs/training.md): the penalties of personal-space
-    intrusions the robot meets on its way then cost more than its progress earns, and a
-    trained agent learns to wait."""
+    """With the `srpb` preset each scenario pays by default, a learner that discounts by
+    PRESET_GAMMA values driving to the goal (`dwa`, which reaches it on these seeds) above
+    standing still until the time limit. Five times the social and obs weights break this
+    among crossing walkers (crossing, crowd, doorway; docs/training.md): the penalties of
+    personal-space intrusions the robot meets on its way then cost more than its progress
+    earns, and a trained agent learns to wait."""
     seeds = (0, 1, 2)
     going = np.mean([_discounted_return(env_id, "dwa", s) for s in seeds])
     waiting = np.mean([_discounted_return(env_id, None, s) for s in seeds])

@@ -157,7 +157,9 @@ def test_the_card_records_the_test_seeds_and_the_command_that_reproduces_them(
     ):
         seen.append((env_ids, episodes, seed, env_kwargs))
         return {env: {"success": 1.0, "collision": 0.0, "timeout": 0.0, "m_psi": 10.0,
-                      "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0} for env in env_ids}  # fmt: skip
+                      "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0, "gt_m_psi": 9.0,
+                      "gt_m_fsi": 0.0, "gt_m_dir": 0.0, "caused_collision": 0.0}
+                for env in env_ids}  # fmt: skip
 
     monkeypatch.setattr(ship, "evaluate", evaluate)
     monkeypatch.setattr(ship, "MODELS_DIR", tmp_path / "models")

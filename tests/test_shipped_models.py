@@ -229,11 +229,13 @@ def test_a_taught_model_is_retrained_after_its_teachers(monkeypatch, capsys):
 
 @pytest.mark.parametrize(("best", "final", "chosen"), [
     ((0.80, 20.0), (0.90, 25.0), "final"),  # higher success wins
-    ((0.90, 25.0), (0.90, 20.0), "final"),  # equal success: lower m_psi wins
+    ((0.90, 25.0), (0.90, 20.0), "final"),  # equal success: lower GT m_psi wins
     ((0.90, 20.0), (0.90, 20.0), "best"),  # a tie keeps best/
     ((0.95, 30.0), (0.90, 10.0), "best"),
 ])  # fmt: skip
 def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, final, chosen):
+    """By success, then by the median m_psi from the true people: the tracked one (here
+    ordered the other way round) does not decide."""
     from training import ship
 
     run = tmp_path / "run"
@@ -245,7 +247,8 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     ):
         seen.append((model, episodes, seed))
         success, psi = best if model.parent.name == "best" else final
-        return {env: {"success": success, "m_psi": psi} for env in env_ids}
+        return {env: {"success": success, "gt_m_psi": psi, "m_psi": 100.0 - psi}
+                for env in env_ids}  # fmt: skip
 
     monkeypatch.setattr(ship, "evaluate", evaluate)
     folder, validation = ship.choose(run, ["SRPB-Crowd-v0"], 100)
@@ -265,7 +268,13 @@ def test_ship_validate_takes_the_better_checkpoint(tmp_path, monkeypatch, best, 
     psis = {"best": best[1], "final": final[1]}
     loser = "final" if chosen == "best" else "best"
     assert (f"mean success {100 * rates[chosen]:.0f} % against {100 * rates[loser]:.0f} %, "
-            f"median m_psi {psis[chosen]:.3g} % against {psis[loser]:.3g} %") in text  # fmt: skip
+            f"median m_psi from ground truth {psis[chosen]:.3g} % against "
+            f"{psis[loser]:.3g} %") in text  # fmt: skip
+    # a card chosen before the rule (no "by") reads the tracked median it was chosen on
+    del validation["by"]
+    tracked = {k: 100.0 - v for k, v in psis.items()}
+    assert (f"median m_psi {tracked[chosen]:.3g} % against "
+            f"{tracked[loser]:.3g} %)") in ship._validation(validation)  # fmt: skip
 
 
 def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monkeypatch):
@@ -297,7 +306,7 @@ def test_ship_validate_tests_best_once_when_it_is_the_final_model(tmp_path, monk
         model, env_ids, episodes, seed, out, env_kwargs=None, workers=1, trust_pickle=False
     ):
         seen.append(model)
-        return {env: {"success": 0.9, "m_psi": 10.0} for env in env_ids}
+        return {env: {"success": 0.9, "m_psi": 10.0, "gt_m_psi": 9.0} for env in env_ids}
 
     monkeypatch.setattr(ship, "evaluate", evaluate)
     folder, validation = ship.choose(run, ["SRPB-Crowd-v0"], 100)
@@ -348,8 +357,9 @@ def test_ship_packages_the_chosen_checkpoint(tmp_path, monkeypatch, capsys):
         workers_seen.append(workers)
         good = model.parent.name == "run"  # the final model is the better one here
         return {env: {"success": 1.0 if good else 0.5, "collision": 0.0, "timeout": 0.0,
-                      "m_psi": 10.0, "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0}
-                for env in env_ids}  # fmt: skip
+                      "m_psi": 10.0, "m_fsi": 0.0, "m_dir": 0.0, "m_mef": 20.0,
+                      "gt_m_psi": 9.0, "gt_m_fsi": 0.0, "gt_m_dir": 0.0,
+                      "caused_collision": 0.0} for env in env_ids}  # fmt: skip
 
     stamped = []
     monkeypatch.setattr(ship, "evaluate", evaluate)

@@ -5,7 +5,8 @@
 Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--final`` takes
 the final model; ``--validate N`` tests both on N validation seeds from
 ``--validation-seed``, none of which chose best/, and takes the better by the periodic
-evaluations' rule; a test seed there is refused), evaluates it once with the
+evaluations' rule, with the median ``m_psi`` from the true people in place of the
+tracked one: :data:`CHOOSE_BY`; a test seed there is refused), evaluates it once with the
 ``srpb-gym eval`` harness on ``--episodes`` test seeds from ``--seed`` (200 from
 20,000,000 by default: :data:`srpb_gym.seeds.TEST`; each scenario of the mixture for a
 model trained on SRPB-Mix-v0; the environments made with the run's env kwargs but those
@@ -66,6 +67,9 @@ TEST_SEED, TEST_EPISODES = TEST.start, 200
 #: evaluations' seeds, which chose best/, the demonstrations of a warm start and the test
 #: seeds
 VALIDATION_SEED = VALIDATION.start
+#: the figure of the validation that decides between best/ and the final model at equal
+#: success: the median m_psi from the true people
+CHOOSE_BY = "gt_m_psi"
 #: the warm-up of the test evaluation (none), which the card's command repeats
 TEST_WARMUP = 0
 #: the scenarios a shipped model's name may name: the packaged ones and the mixture
@@ -262,9 +266,11 @@ def _weights_text(weights: dict[str, dict[str, float]]) -> str:
 
 
 def _validation(validation: dict[str, Any] | None) -> str:
-    """How the checkpoint was chosen, when it was chosen on validation seeds."""
+    """How the checkpoint was chosen, when it was chosen on validation seeds (by the
+    tracked median m_psi on cards from before ``by`` was recorded)."""
     if not validation:
         return ""
+    by = validation.get("by", "m_psi")
 
     def mean(label: str, key: str) -> float:
         values = [f[key] for f in validation["results"][label].values() if math.isfinite(f[key])]
@@ -277,7 +283,8 @@ def _validation(validation: dict[str, Any] | None) -> str:
         f", chosen over {names[other]} on {validation['episodes']} validation seeds "
         f"from {validation['seed']} (mean success {100 * mean(chosen, 'success'):.0f} % "
         f"against {100 * mean(other, 'success'):.0f} %, median m_psi "
-        f"{mean(chosen, 'm_psi'):.3g} % against {mean(other, 'm_psi'):.3g} %)"
+        f"{'from ground truth ' if by == 'gt_m_psi' else ''}"
+        f"{mean(chosen, by):.3g} % against {mean(other, by):.3g} %)"
     )
 
 
@@ -398,7 +405,9 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
            workers: int = 1, seed: int = VALIDATION_SEED, trust_pickle: bool = False,
            ) -> tuple[Path, dict[str, Any]]:  # fmt: skip
     """``best/`` or the final model of ``run``, whichever scores higher
-    (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then mean median m_psi)
+    (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then the mean of the
+    median m_psi from the true people: the periodic evaluations that chose best/ read the
+    tracked one, and a policy's distance from people is what it keeps in ground truth)
     on ``episodes`` seeds from ``seed`` (default :data:`VALIDATION_SEED`; a test seed is an
     :class:`~srpb_gym.errors.InputError` naming ``--validation-seed``); ``best/`` on a tie
     (and without a second evaluation when ``best/`` is the final model). Returns the chosen
@@ -413,11 +422,13 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
             continue
         figures[label] = evaluate(folder / "model.zip", env_ids, episodes, seed, work,
                                   env_kwargs, workers, trust_pickle)  # fmt: skip
-    better = eval_score(figures["final"].values()) > eval_score(figures["best"].values())
+    better = (eval_score(figures["final"].values(), CHOOSE_BY)
+              > eval_score(figures["best"].values(), CHOOSE_BY))  # fmt: skip
     return (run if better else run / "best"), {
         "episodes": episodes,
         "seed": seed,
         "chosen": "final" if better else "best",
+        "by": CHOOSE_BY,
         "results": figures,
     }
 

@@ -330,13 +330,15 @@ def seen_margin(venv: Any, penalty: float, bound: float) -> float:
     return seen - bound / reward_sigma(venv)
 
 
-def eval_score(figures: Iterable[Mapping[str, float]]) -> tuple[float, float]:
+def eval_score(figures: Iterable[Mapping[str, float]], psi: str = "m_psi") -> tuple[float, float]:
     """How good one evaluation is, by environment figures (higher is better): the mean
-    success rate, then the negated mean of the median m_psi (-inf when none is defined)."""
+    success rate, then the negated mean of the median m_psi (-inf when none is defined);
+    ``psi``: the figure read as that median (``"gt_m_psi"``: the one from the true people,
+    where the evaluation has it)."""
     figures = list(figures)
     success = sum(f["success"] for f in figures) / len(figures)
-    psi = [f["m_psi"] for f in figures if math.isfinite(f["m_psi"])]
-    return success, -sum(psi) / len(psi) if psi else -math.inf
+    medians = [f[psi] for f in figures if math.isfinite(f[psi])]
+    return success, -sum(medians) / len(medians) if medians else -math.inf
 
 
 def _cell(value: Any) -> Any:
