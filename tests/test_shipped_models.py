@@ -9,9 +9,11 @@ import sys
 
 import gymnasium as gym
 import pytest
+import yaml
 
 import srpb_gym  # noqa: F401
 from srpb_gym.models import card, model_names, model_path
+from srpb_gym.reward_terms import TASK_TERMS
 from srpb_gym.training.targets import eval_env_ids
 from training.retrain_models import MODELS, MULTI_RECIPES, recipe_of
 from training.ship import _trained_weights
@@ -97,6 +99,15 @@ def test_eval_takes_a_short_name(name, tmp_path, capsys):
         assert [r["planner"] for r in csv.DictReader(f)] == [name]
 
 
+def _reward_weights(options: dict[str, list[str]]) -> dict[str, float]:
+    """The ``reward_weights`` env kwarg of a command's options ({} without one)."""
+    for item in options.get("--env-kwargs", []):
+        key, _, value = item.partition("=")
+        if key == "reward_weights":
+            return yaml.safe_load(value)
+    return {}
+
+
 def test_twins_differ_in_the_reward_alone():
     from training.retrain_models import RECIPES, train_command
 
@@ -122,10 +133,12 @@ def test_twins_differ_in_the_reward_alone():
         kw_srpb = [k for k in srpb.get("--env-kwargs", []) if not k.startswith("reward_weights")]
         kw_task = [k for k in task.get("--env-kwargs", []) if not k.startswith("reward_weights")]
         assert kw_srpb == kw_task, scenario
-        # the task twin pays the srpb model's collision penalty
-        collision = RECIPES[scenario].collision
-        if collision != -25.0:
-            assert f"reward_weights={{collision: {collision!r}}}" in task["--env-kwargs"]
+        # the task twin pays the srpb model's task-term weights (its collision penalty
+        # among them), and none of its SRPB weights
+        weights = {name: _reward_weights(cmd) for name, cmd in (("srpb", srpb), ("task", task))}
+        task_part = {k: v for k, v in weights["srpb"].items() if k in TASK_TERMS}
+        assert weights["task"] == task_part, scenario
+        assert weights["srpb"].get("collision", -25.0) == RECIPES[scenario].collision
     assert set(MODELS) == {f"ppo-{s}-{p}" for s in RECIPES for p in ("srpb", "task")}
 
 
