@@ -16,7 +16,8 @@ run's ``best/`` (``--checkpoint final``: its final model) and every ``--planner`
 same ``--episodes`` seeds from ``--seed`` (default the test range, 20,000,000:
 :data:`srpb_gym.seeds.TEST`) with the ``srpb-gym eval`` harness into ``--out`` (an
 interrupted evaluation continues there). Reported, for every run and planner: success
-with its Wilson 95 % interval, collisions (those the robot caused), and the mean and median
+with its Wilson 95 % interval, collisions (those the robot caused), the episodes in which
+the robot pushed a walker back more than 1 m (``people_pushed_back``), and the mean and median
 of ``m_psi``, ``m_fsi`` and ``m_dir`` from ground truth (tracked beside). For every pair
 (one training seed): the success difference (B - A, McNemar) and the relative change of
 mean ground-truth ``m_psi`` (Wilcoxon on the episode differences). Pooled over the seeds:
@@ -24,7 +25,10 @@ each episode's values averaged over the training seeds of A and of B, then the s
 difference in points and the relative change of each ground-truth metric's mean, with
 percentile bootstrap 95 % intervals over the episodes (10,000 resamples, default_rng(0))
 and the Wilcoxon signed-rank test of the episode differences. ``report.md`` and
-``report.json`` in ``--out`` hold the same.
+``report.json`` in ``--out`` hold the same. ``--env-kwargs`` are environment arguments
+for every run and planner (``'crowd={robot_backing_gap: 0.3}'``: people who back away
+from a robot only at close range); the runs are evaluated in that environment whatever
+they were trained in.
 
 With ``--robots N`` the runs are ``python -m training.multi_robot`` runs (or a shipped
 policy for several robots), each policy drives all N robots of an episode, and the runs'
@@ -49,6 +53,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from srpb_gym.config import parse_overrides
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
 from srpb_gym.evaluation.harness import run_evaluation
@@ -56,6 +61,7 @@ from srpb_gym.evaluation.intervals import wilson
 from srpb_gym.evaluation.multi import robot_hits, success_by_robot
 from srpb_gym.evaluation.paired import mcnemar, signed_rank
 from srpb_gym.evaluation.spec import resolve_config
+from srpb_gym.evaluation.stats import PUSHED_BACK
 from srpb_gym.models import model_path
 from srpb_gym.registration import ENV_IDS
 from srpb_gym.seeds import TEST
@@ -200,9 +206,13 @@ def run_row(label: str, rows: list[EpisodeResult], robots: int = 1) -> dict[str,
     low, high = wilson(wins, n) or (float("nan"), float("nan"))
     collided = [r for r in rows if r.collision]
     by_robot = sum(1 for r in collided if r.first_collision and r.first_collision.by == "robot")
+    back = np.array([r.pushed_back for r in rows])
+    back = back[np.isfinite(back)]  # unknown in an older episodes.csv
+    pushed = 100.0 * float(np.mean(back > PUSHED_BACK)) if back.size else None
     row = {"label": label, "episodes": n, "success": 100.0 * wins / n, "ci": [low, high],
            "collision": 100.0 * len(collided) / n,
-           "robot_caused": 100.0 * by_robot / n}  # fmt: skip
+           "robot_caused": 100.0 * by_robot / n,
+           "pushed_back": pushed}  # fmt: skip
     if robots > 1:
         row["hit_robot"] = 100.0 * robot_hits(rows) / n
         row["success_by_robot"] = [100.0 * rate for rate in success_by_robot(rows)]
@@ -282,8 +292,9 @@ def markdown(report: dict[str, Any]) -> str:
     extra = " hit a robot | success by robot |" if multi else ""
     lines = [f"{report['episodes']} {what}, seeds {report['seeds'][0]}-{report['seeds'][1]}; "
              "metrics from ground truth (tracked in brackets), mean / median", "",
-             f"| run | success | collisions (robot) |{extra} m_psi | m_fsi | m_dir |",
-             "| --- | --- | --- |" + " --- |" * (3 + 2 * multi)]  # fmt: skip
+             f"| run | success | collisions (robot) | pushed back > {PUSHED_BACK:g} m |{extra} "
+             "m_psi | m_fsi | m_dir |",
+             "| --- | --- | --- | --- |" + " --- |" * (3 + 2 * multi)]  # fmt: skip
     for row in report["runs"]:
         cells = [f"{_num(row[f'{m}_gt_mean'])} / {_num(row[f'{m}_gt_median'])} "
                  f"({_num(row[f'{m}_tracked_median'])})" for m in METRICS]  # fmt: skip
@@ -292,7 +303,8 @@ def markdown(report: dict[str, Any]) -> str:
             cells = [f"{row['hit_robot']:.1f} %", by_robot, *cells]
         lines.append(f"| {row['label']} | {row['success']:.1f} % [{row['ci'][0]:.1f}-"
                      f"{row['ci'][1]:.1f}] | {row['collision']:.1f} % ({row['robot_caused']:.1f} "
-                     f"%) | {' | '.join(cells)} |")  # fmt: skip
+                     f"%) | {_num(row.get('pushed_back'), '.1f')} % | "
+                     f"{' | '.join(cells)} |")  # fmt: skip
     test = "Wilcoxon p" if multi else "McNemar p"
     unit = ", episode values the mean over the robots" if multi else ""
     lines += ["", f"Pairs ({nb} against {na}, one training seed each{unit}):", "",
@@ -329,9 +341,18 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=TEST.start)
     parser.add_argument("--workers", type=int, default=1)
     parser.add_argument("--robots", type=int, default=1, help="robots per episode")
+    parser.add_argument(
+        "--env-kwargs",
+        nargs="+",
+        default=[],
+        metavar="KEY=VALUE",
+        help="environment arguments of every run and planner, e.g. "
+        "'crowd={robot_backing_gap: 0.3}' (as srpb-gym eval --env-kwargs)",
+    )
     parser.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     try:
+        env_kwargs = parse_overrides(args.env_kwargs, "--env-kwargs")
         for line in check_pairs(args.a, args.b):
             print(line)
         models = []
@@ -344,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
         config = resolve_config([args.env], planners=args.planner or None, policies=models,
                                 episodes=args.episodes, seed=args.seed, out=args.out,
                                 workers=args.workers, warmup=0, resume=resume,
-                                robots=args.robots)  # fmt: skip
+                                robots=args.robots, env_kwargs=env_kwargs)  # fmt: skip
         outcome = run_evaluation(config)
         labels = [spec.name for spec in config.planners if spec.policy is not None]
         n = len(args.a)

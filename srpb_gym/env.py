@@ -173,7 +173,10 @@ class SRPBNavEnv(gym.Env):
     before it), so the collision does not hide who moved. Other steps lack these keys. The
     last ``info`` has ``collision_count`` (the episode's collisions: at most 1 with
     ``collision="terminate"``) and, after a collision, the first one as
-    ``first_collision_kind``, ``first_collision_by``, ... (the same six fields).
+    ``first_collision_kind``, ``first_collision_by``, ... (the same six fields), and
+    ``people_pushed_back``: the most any walker moved against the way it walks in the
+    episode [m] (:attr:`~srpb_gym.sim.crowd.Crowd.pushed_back`): a walker pushed back
+    by a robot, which ``crowd={"robot_backing_gap": ...}`` limits to close range.
 
     ## Arguments
     ``scenario``: a packaged name (corridor, fformation, crossing, crowd, doorway) or a path
@@ -231,7 +234,9 @@ class SRPBNavEnv(gym.Env):
       gained the attribution of collisions (``collision_kind``, ``collision_by``, ...,
       ``collision_count``); everything else is as it was. ``reward_people`` was added;
       its default ``"tracked"`` is the reward as before. ``route`` was added; by default
-      the robot drives the scenario's ``robot`` entry, the episodes as before.
+      the robot drives the scenario's ``robot`` entry, the episodes as before. The last
+      info gained ``people_pushed_back``, and the crowd setting ``robot_backing_gap``
+      was added; its default (inf) is the people's motion as before.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

@@ -217,8 +217,11 @@ class RobotTask:
         """End the episode: put its SRPB metrics into ``info`` (``srpb/<metric>`` from the
         tracked people, ``srpb_gt/<metric>`` from ground truth, the parameters used), its
         collisions (``collision_count`` and the first one, ``first_collision_<field>``, when
-        there was one) and write its logs as ``<record_dir>/<stem>*`` when recording."""
+        there was one), ``people_pushed_back`` (the most any walker moved against the way it
+        walks, m: :attr:`~srpb_gym.sim.crowd.Crowd.pushed_back`) and write its logs as
+        ``<record_dir>/<stem>*`` when recording."""
         info["collision_count"] = self.collision_count
+        info["people_pushed_back"] = float(self.sim.crowd.pushed_back.max(initial=0.0))
         if self.first_collision is not None:
             info.update(self.first_collision.info(FIRST_PREFIX))
         tracked, truth = self.episode_metrics()

@@ -13,13 +13,13 @@ from srpb_gym.errors import InputError
 from srpb_gym.evaluation.data import EpisodeResult
 
 
-def episode(planner: str, seed: int, success: bool, psi: float,
-            robot: int | None = None) -> EpisodeResult:  # fmt: skip
+def episode(planner: str, seed: int, success: bool, psi: float, robot: int | None = None,
+            back: float = 0.0) -> EpisodeResult:  # fmt: skip
     metrics = {"m_psi": psi + 1.0, "m_fsi": 0.0, "m_dir": 0.0}  # tracked: another value
     truth = {"m_psi": psi, "m_fsi": 0.0, "m_dir": 0.0}
     return EpisodeResult(env="SRPB-Crowd-v0", planner=planner, seed=seed, is_success=success,
                          collision=not success, timeout=False, metrics=metrics,
-                         ground_truth=truth, robot=robot)  # fmt: skip
+                         ground_truth=truth, robot=robot, pushed_back=back)  # fmt: skip
 
 
 def test_effects_by_hand():
@@ -30,7 +30,7 @@ def test_effects_by_hand():
     for label, psi in {**psi_a, **psi_b}.items():
         for seed, value in enumerate(psi):
             results.append(episode(label, 100 + seed, success=not (label == "b1" and seed == 0),
-                                   psi=float(value)))  # fmt: skip
+                                   psi=float(value), back=0.5 * value))  # fmt: skip
     report = cc.analyse(results, ["a0", "a1"], ["b0", "b1"], [], ("task", "srpb"))
     pooled = report["pooled"]
     # episode means over the seeds: A 20, 20, 20, 20; B 10, 10, 10, 10
@@ -45,8 +45,10 @@ def test_effects_by_hand():
     assert report["pairs"][1]["success"] == pytest.approx(-25.0)
     row = report["runs"][0]
     assert row["m_psi_gt_mean"] == 25.0 and row["m_psi_tracked_median"] == 26.0
+    assert row["pushed_back"] == 100.0  # a0 pushed walkers back 5, 10, 15 and 20 m
+    assert report["runs"][1]["pushed_back"] == 75.0  # a1: 15, 10, 5 and 0 m
     text = cc.markdown(report)
-    assert "| -50.0 %" in text
+    assert "| -50.0 %" in text and "| 75.0 % |" in text
     # no O-space in these episodes: no relative change of m_fsi to report
     assert np.isnan(pooled["m_fsi"]["effect"]) and "| mean GT m_fsi | 0 | 0 | n/a | n/a |" in text
 

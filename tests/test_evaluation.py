@@ -22,6 +22,7 @@ from srpb_gym.evaluation.stats import (
     CSV_COLUMNS,
     GT_COLUMNS,
     PEOPLE_METRICS,
+    PUSHED_BACK_LABEL,
     cell,
     latex_escape,
     metric_rows,
@@ -116,17 +117,18 @@ def test_tables_in_three_formats(run, capsys):
     )
     body = [line.split(" | ")[0].strip("| ") for line in lines[4:]]
     labels = [label for label, _, _ in metric_rows()]
-    assert body == ["episodes", "success", "collision", "timeout", *labels]
+    assert body == ["episodes", "success", "collision", "timeout", PUSHED_BACK_LABEL, *labels]
     assert labels[labels.index("m_psi (tracked)") + 1] == "m_psi (ground truth)"
     assert "m_obs" in labels and len(labels) == len(METRIC_NAMES) + len(PEOPLE_METRICS)
     tex = (run / f"table_{ENV}.tex").read_text()
     assert "\\begin{tabular}{llr}" in tex and "\\end{tabular}" in tex
-    assert "m\\_psi (tracked) & \\% &" in tex and tex.count("\\\\") == 1 + 4 + len(labels)
+    assert "m\\_psi (tracked) & \\% &" in tex and tex.count("\\\\") == 1 + 5 + len(labels)
     with open(run / f"table_{ENV}.csv", newline="") as f:
         table = list(csv.reader(f))
     assert table[0] == ["metric", "unit", *(f"go-to-goal {k}" for k in ("median", "q1", "q3", "n")),
                         "go-to-goal ci_low", "go-to-goal ci_high"]  # fmt: skip
-    assert [r[0] for r in table[5:]] == [*METRIC_NAMES, *GT_COLUMNS]
+    assert table[5][0] == PUSHED_BACK_LABEL
+    assert [r[0] for r in table[6:]] == [*METRIC_NAMES, *GT_COLUMNS]
     assert all(len(r) == 8 for r in table)
     assert cell({"median": 12.3, "q1": 10.1, "q3": 14.0}) == "12.3 [10.1-14.0]"
     # not 0, yet below the last decimal: said so, not printed as 0

@@ -205,7 +205,9 @@ class EpisodeResult:
     episode's scenario (for ``SRPB-Mix-v0`` the one drawn). ``first_collision``: the
     episode's first collision, attributed (``info["first_collision_<field>"]``;
     :mod:`srpb_gym.sim.contact`), ``None`` without a collision or when not known (an
-    ``episodes.csv`` written before it was kept)."""
+    ``episodes.csv`` written before it was kept). ``pushed_back``: the most any walker of
+    the episode moved against the way it walks [m] (``info["people_pushed_back"]``: pushed
+    back by a robot; NaN when not known)."""
 
     env: str
     planner: str
@@ -221,6 +223,7 @@ class EpisodeResult:
     scenario: str = ""
     ground_truth: dict[str, float] = field(default_factory=dict)
     first_collision: Collision | None = None
+    pushed_back: float = math.nan
 
     def truth(self, metric: str) -> float:
         """The ground-truth value of ``metric`` (NaN when not computed)."""

@@ -147,6 +147,6 @@ def run_multi_task(
             out["timeout"], {m: float(info[f"srpb/{m}"]) for m in METRIC_NAMES}, out["steps"],
             os.path.relpath(record, config.out), clip, robot, config.scenario_name(task.env),
             {m: float(info[f"srpb_gt/{m}"]) for m in METRIC_NAMES},
-            Collision.from_info(info, FIRST_PREFIX),
+            Collision.from_info(info, FIRST_PREFIX), float(info["people_pushed_back"]),
         ))  # fmt: skip
     return results

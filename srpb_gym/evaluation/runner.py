@@ -147,6 +147,7 @@ class Workspace:
             os.path.relpath(record, self.config.out), scenario=base.scenario.name,
             ground_truth={m: float(info[f"srpb_gt/{m}"]) for m in METRIC_NAMES},
             first_collision=Collision.from_info(info, FIRST_PREFIX),
+            pushed_back=float(info["people_pushed_back"]),
         )  # fmt: skip
         if video is not None:
             result.video = os.path.relpath(video.close(), self.config.out)

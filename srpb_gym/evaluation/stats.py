@@ -8,11 +8,13 @@ then the same metrics from ground truth (:data:`GT_COLUMNS`, ``gt_m_psi``, ...),
 episode's first collision, attributed (:data:`COLLISION_COLUMNS`: ``collision_kind``
 ``wall``/``person``/``robot``, ``collision_by`` ``robot``/``person``/``other_robot``, the
 robot's and the other's speed and closing speed [m/s]; empty kind and cause and ``nan``
-speeds without a collision; :mod:`srpb_gym.sim.contact`). A file without the ``scenario``
+speeds without a collision; :mod:`srpb_gym.sim.contact`), then ``people_pushed_back``:
+the most any walker moved against the way it walks [m] (pushed back by the robot:
+:attr:`srpb_gym.sim.crowd.Crowd.pushed_back`). A file without the ``scenario``
 column reads as empty scenarios, one without the ground-truth columns (an older run) as
 ground truth not computed (NaN), one without the collision columns as collisions not
-attributed. A multi-robot run has one row per (episode, robot), with a ``robot`` column
-(the robot's index) after ``seed``.
+attributed, one without ``people_pushed_back`` as not known (NaN). A multi-robot run has
+one row per (episode, robot), with a ``robot`` column (the robot's index) after ``seed``.
 
 The tables follow the SRPB paper's Table 4: one per scenario, rows = metrics with units
 (after the episode count and the success, collision and timeout rates in % with their
@@ -56,7 +58,7 @@ COLLISION_COLUMNS: tuple[str, ...] = tuple(f"{STEP_PREFIX}{f}" for f in FIELDS)
 ``collision_other_closing``."""
 CSV_COLUMNS: tuple[str, ...] = (
     "env", "planner", "seed", "is_success", "collision", "timeout", *METRIC_NAMES, *GT_COLUMNS,
-    "scenario", *COLLISION_COLUMNS,
+    "scenario", *COLLISION_COLUMNS, "people_pushed_back",
 )  # fmt: skip
 ROBOT_COLUMNS: tuple[str, ...] = (*CSV_COLUMNS[:3], "robot", *CSV_COLUMNS[3:])
 """The columns of a multi-robot run's ``episodes.csv``."""
@@ -67,6 +69,10 @@ attribution (an ``episodes.csv`` written before it was kept)."""
 BY_LABELS = {"robot": "robot", "person": "person", "other_robot": "other robot",
              UNATTRIBUTED: "not attributed"}  # fmt: skip
 """How the tables name each cause of a collision."""
+PUSHED_BACK = 1.0
+"""m: an episode in which a walker was pushed back farther than this counts in
+``summary.json``'s ``pushed_back_rate`` (and the tables' ``people pushed back > 1 m``)."""
+PUSHED_BACK_LABEL = f"people pushed back > {PUSHED_BACK:g} m"
 OUTCOMES: tuple[tuple[str, str], ...] = (
     ("success", "is_success"), ("collision", "collision"), ("timeout", "timeout"),
 )  # fmt: skip
@@ -86,6 +92,10 @@ STATISTICS = {
     "<outcome>_rate_ci": "Wilson score 95 % interval of the rate, %",
     "collision_by_rate": "episodes whose first collision was caused by the robot, a person, "
     "another robot, or is not attributed (an older episodes.csv), % of all episodes",
+    "people_pushed_back": "the most any walker moved against the way it walks in an "
+    "episode [m] (statistics as a metric's)",
+    "pushed_back_rate": f"episodes in which a walker was pushed back farther than "
+    f"{PUSHED_BACK:g} m, % of the episodes where it is known, with its Wilson 95 % interval",
 }
 """What the statistics of ``summary.json`` are (its ``statistics`` key)."""
 Summary = dict[str, dict[str, dict[str, Any]]]
@@ -104,7 +114,7 @@ def csv_row(result: EpisodeResult, robots: bool = False) -> list[str]:
     hit = ["", "", *("nan" for _ in FIELDS[2:])] if c is None else [
         c.kind, c.by, *(repr(float(getattr(c, f))) for f in FIELDS[2:])]  # fmt: skip
     return [result.env, result.planner, str(result.seed), *robot, *flags, *values, *truth,
-            result.scenario, *hit]  # fmt: skip
+            result.scenario, *hit, repr(float(result.pushed_back))]  # fmt: skip
 
 
 class EpisodeWriter:
@@ -210,7 +220,9 @@ def _parse_row(row: list[str], col: dict[str, int], path: str, line: int) -> Epi
     scenario = row[col["scenario"]] if "scenario" in col else ""
     return EpisodeResult(env, planner, seed, *flags, metrics, robot=int(robot) if robot else None,
                          scenario=scenario, ground_truth=truth,
-                         first_collision=_collision(row, col, flags[1], path, line))  # fmt: skip
+                         first_collision=_collision(row, col, flags[1], path, line),
+                         pushed_back=_number(row, col, "people_pushed_back", path,
+                                             line))  # fmt: skip
 
 
 def _collision(
@@ -233,9 +245,8 @@ def _collision(
     return Collision(kind, by, *speeds)
 
 
-#: the columns of the collision attribution that hold speeds (>= 0; the closing speeds
-#: may be negative)
-SPEED_COLUMNS = ("collision_robot_speed", "collision_other_speed")
+#: the columns that hold speeds or a distance (>= 0; the closing speeds may be negative)
+SPEED_COLUMNS = ("collision_robot_speed", "collision_other_speed", "people_pushed_back")
 
 
 def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int) -> float:
@@ -253,7 +264,7 @@ def _number(row: list[str], col: dict[str, int], name: str, path: str, line: int
         raise InputError(f"column {name} is {value!r}, expected a finite number or nan", path,
                          line)  # fmt: skip
     elif name in SPEED_COLUMNS and value < 0.0:
-        raise InputError(f"column {name} is {value!r}, a speed is >= 0", path, line)
+        raise InputError(f"column {name} is {value!r}, expected >= 0", path, line)
     return value
 
 
@@ -342,6 +353,11 @@ def _entry(
                      for r in rows if r.collision)  # fmt: skip
     entry["collision_by_rate"] = {c: 100.0 * causes[c] / len(rows)
                                   for c in (*CAUSES, UNATTRIBUTED)}  # fmt: skip
+    back = finite([r.pushed_back for r in rows])
+    entry["people_pushed_back"] = describe(back)
+    pushed = int((back > PUSHED_BACK).sum())
+    entry["pushed_back_rate"] = 100.0 * pushed / back.size if back.size else None
+    entry["pushed_back_rate_ci"] = wilson(pushed, back.size) if back.size else None
     entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
     entry["metrics_gt"] = {m: describe([r.truth(m) for r in rows]) for m in METRIC_NAMES}
     return entry
@@ -427,12 +443,20 @@ def table(planners: dict[str, dict[str, Any]]) -> tuple[list[str], list[list[str
     rows = [["episodes", "-", *(str(planners[p]["episodes"]) for p in names)]]
     rows += [[label, "%", *(rate_cell(planners[p], label) for p in names)]
              for label, _ in OUTCOMES]  # fmt: skip
+    rows.append([PUSHED_BACK_LABEL, "%", *(_pushed_cell(planners[p]) for p in names)])
     for label, m, gt in metric_rows():
         key = "metrics_gt" if gt else "metrics"
         rows.append([label, METRIC_UNITS[m], *(
             cell(planners[p][key][m], planners[p]["episodes"], ("ci_low", "ci_high"))
             for p in names)])  # fmt: skip
     return ["metric", "unit", *names], rows
+
+
+def _pushed_cell(entry: dict[str, Any]) -> str:
+    """``3 [1.0-8.6]``: the share of episodes with a walker pushed back (``n/a``: unknown)."""
+    if entry.get("pushed_back_rate") is None:
+        return "n/a"
+    return f"{rate(entry['pushed_back_rate'])} {interval(*entry['pushed_back_rate_ci'], fmt=rate)}"
 
 
 def format_text(title: str, header: list[str], rows: list[list[str]]) -> str:
@@ -488,6 +512,10 @@ def table_csv(path: str, planners: dict[str, dict[str, Any]]) -> None:
         rows.append([label, "%", *(v for p in names
                                    for v in (planners[p][f"{label}_rate"], "", "", "")),
                      *(v for b in bounds for v in b)])  # fmt: skip
+    pushed = [_blank(planners[p].get("pushed_back_rate")) for p in names]
+    bounds = [planners[p].get("pushed_back_rate_ci") or ("", "") for p in names]
+    rows.append([PUSHED_BACK_LABEL, "%", *(v for x in pushed for v in (x, "", "", "")),
+                 *(v for b in bounds for v in b)])  # fmt: skip
     for prefix, key in (("", "metrics"), (GT_PREFIX, "metrics_gt")):
         for m in METRIC_NAMES:
             stats = [planners[p][key][m] for p in names]

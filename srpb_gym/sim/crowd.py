@@ -80,6 +80,14 @@ class SocialForceConfig:
     its line or stands by a door. Measured in the packaged scenarios: a robot parked where
     it starts is touched in none of 100 episodes in each (``benchmarks/people.py``);
     without this term 13 of 30 corridor episodes ended with a person walking into it.
+    The robot's terms may make a walker back away (the people, walls and group terms
+    never do), but only while the gap between its body and a robot's is below
+    ``robot_backing_gap``; farther off, the part of its target velocity against its heading
+    is dropped and the walker stops for the robot. The default (inf) lets a robot push a
+    walker back from any distance: a robot that keeps a walker's distance while driving
+    at it can herd the walker back along its route (in ``corridor``, along the wall for
+    metres). Each walker's distance moved against its heading is kept
+    (:attr:`Crowd.pushed_back`; ``info["people_pushed_back"]`` at an episode's end).
 
     Doors (the layout's ``doors``: openings narrower than one body can share, found from
     the walls): walkers take turns. A walker whose next waypoint, or the one after, lies
@@ -132,11 +140,13 @@ class SocialForceConfig:
     robot_ttc_margin: float = 0.1  # [m] added to the bodies' radii: the gap people keep
     door_approach: float = 2.0  # [m] walkers take turns at doors this close (0: never)
     door_wait_distance: float = 0.5  # [m] from the door's wall and opening to the wait spot
+    robot_backing_gap: float = math.inf  # [m] walkers back away from closer robots only
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            if not isinstance(value, (int, float)) or not math.isfinite(value):
+            if not isinstance(value, (int, float)) or math.isnan(value) or (
+                    math.isinf(value) and f.name not in _UNBOUNDED):  # fmt: skip
                 raise ValueError(f"{f.name} must be a finite number, got {value!r}")
             if f.name in _POSITIVE and value <= 0.0:
                 raise ValueError(f"{f.name} must be > 0, got {value!r}")
@@ -160,6 +170,7 @@ _POSITIVE = frozenset({
     "robot_ttc_horizon", "robot_ttc_max", "door_wait_distance",
     "group_view_angle", "waypoint_tolerance", "hold_stiffness", "standing_max_speed",
     "jitter_time", "yaw_time_constant"})  # fmt: skip
+_UNBOUNDED = frozenset({"robot_backing_gap"})  # may be inf
 _BOUNDS = (("anisotropy", 0.0, 1.0), ("max_speed_factor", 1.0, math.inf),
            ("group_view_angle", 0.0, math.pi))  # fmt: skip
 PRESETS: dict[str, SocialForceConfig] = {"default": SocialForceConfig()}
@@ -174,7 +185,9 @@ class Crowd:
 
     Read-only views, updated in place until the next :meth:`reset`: ``position`` (P, 2) [m],
     ``velocity`` (P, 2) [m/s], ``yaw`` (P,) [rad], ``radius`` (P,) [m], ``state`` (P,) int64,
-    ``waiting`` (P,) int64 (1 while a walker waits for a door, else 0),
+    ``waiting`` (P,) int64 (1 while a walker waits for a door, else 0), ``pushed_back``
+    (P,) [m] (how far each walker has moved against the way it walks since :meth:`reset`
+    while a robot made it back away; people, walls and groups never make it back away),
     ``walking_group`` (P,) int64 (0..G-1 in order of first appearance; -1 alone, also for a
     group id used once), ``formation_of`` (P,) int64 (or -1), ``formation_centers`` (F, 2)
     [m]; ``formation_members``: list of F int64 arrays of person indices.
@@ -206,6 +219,7 @@ class Crowd:
         self._props, self._links = np.zeros((n, 6)), np.full((n, 5), -1, dtype=np.int64)
         self._cursor, self._state = np.zeros(n, np.int64), np.full(n, WAITING, np.int64)
         self._waiting = np.zeros(n, np.int64)
+        self._heading, self._back = np.zeros((n, 2)), np.zeros(n)
         self._jit, self._noise = np.zeros((m, 3)), np.zeros((m, 3))
         self._set_walkers(people)
         self._set_formations(formations, len(people))
@@ -214,7 +228,8 @@ class Crowd:
 
     # the arrays derived from the state ones: kernel argument tuples and read-only views
     _DERIVED = ("_step_args", "_sync_args", "position", "velocity", "yaw", "radius", "state",
-                "waiting", "walking_group", "formation_of", "formation_centers")  # fmt: skip
+                "waiting", "pushed_back", "walking_group", "formation_of",
+                "formation_centers")  # fmt: skip
 
     def _bind(self) -> None:
         """The kernels' argument tuples and the public read-only views of the state arrays
@@ -223,14 +238,16 @@ class Crowd:
         self._step_args = (self._pos, self._vel, self._yaw, self._radius, self._props,
                            self._links, self._cursor, self._state, self._route, self._anchor,
                            self._leg_from, self._jit, self._noise, self._fcenter,
-                           self._fradius, self._gsum, self._doors, self._waiting, self._prm,
-                           self._out)  # fmt: skip
+                           self._fradius, self._gsum, self._doors, self._waiting,
+                           self._heading, self._prm, self._out)  # fmt: skip
         self._sync_args = (self._pos, self._vel, self._yaw, self._state, self._links,
-                           self._fcenter, self._jit, self._prm)  # fmt: skip
+                           self._fcenter, self._jit, self._heading, self._back,
+                           self._prm)  # fmt: skip
         self.position, self.velocity = _readonly(self._pos), _readonly(self._vel)
         self.yaw, self.radius = _readonly(self._yaw), _readonly(self._radius)
         self.state = _readonly(self._state)
         self.waiting = _readonly(self._waiting)
+        self.pushed_back = _readonly(self._back)
         self.walking_group = _readonly(np.ascontiguousarray(self._links[:, GROUP]))
         self.formation_of = _readonly(np.ascontiguousarray(self._links[:, FORMATION]))
         self.formation_centers = _readonly(self._fcenter)

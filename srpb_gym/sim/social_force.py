@@ -28,7 +28,7 @@ GROUP, FORMATION, RSTART, RLEN, LOOP = range(5)
 # SocialForceConfig (a test checks).
 (A_P, B_P, LAM, T_ANT, EVADE, RANGE, A_W, B_W, A_R, B_R, A_O, _VMAX, BETA1, BETA2, BETA3, VIEW,
  MARGIN, TOL, PASS, K_HOLD, C_HOLD, _VSTAND, T_JIT, F_REACT, R_REACT, T_YAW,
- V_YAW, K_TTC, T_TTC, F_TTC, M_TTC, D_APPROACH, D_WAIT) = range(33)  # fmt: skip
+ V_YAW, K_TTC, T_TTC, F_TTC, M_TTC, D_APPROACH, D_WAIT, G_BACK) = range(34)  # fmt: skip
 DOOR_FLOW = 0.1  # [m/s] slower than this across a door, a body in it holds it both ways
 
 
@@ -178,12 +178,15 @@ def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm, ux,
     time-to-collision term (for the robot's body plus ``robot_ttc_margin``; its braking part
     partly turned sideways like the social force's) of the velocity (ux, uy) the person
     means to walk at: the collision it would walk into, which its current velocity, already
-    bent by this force, would hide (it would chatter between braking and walking on)."""
+    bent by this force, would hide (it would chatter between braking and walking on).
+    Returns the force and the smallest gap between the person's body and a robot's [m]."""
     fx = fy = 0.0
+    gap = math.inf
     for r in range(rxy.shape[0]):
         dx, dy = pos[i, 0] - rxy[r, 0], pos[i, 1] - rxy[r, 1]
         dvx, dvy = vel[i, 0] - rvel[r, 0], vel[i, 1] - rvel[r, 1]
         rsum = radius[i] + rrad[r]
+        gap = min(gap, math.sqrt(dx * dx + dy * dy) - rsum)
         gx, gy = _social(dx, dy, dvx, dvy, rsum, prm[A_R], prm[B_R], prm[T_ANT], ex, ey,
                          prm[LAM], evasion, 1.0)  # fmt: skip
         fx, fy = fx + gx, fy + gy
@@ -193,7 +196,7 @@ def _robot_force(i, pos, vel, radius, ex, ey, evasion, rxy, rvel, rrad, prm, ux,
             sx, sy = _side(dx, dy, ex, ey)
             gx, gy = _evade(gx, gy, sx, sy, ex, ey, evasion)
             fx, fy = fx + gx, fy + gy
-    return fx, fy
+    return fx, fy, gap
 
 
 @njit(cache=True, inline="always", error_model="numpy")
@@ -352,7 +355,7 @@ def _door_wait(i, pos, vel, radius, links, cursor, state, route, doors, waiting,
 
 @njit(cache=True, inline="always", error_model="numpy")
 def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, route, leg_from,
-                     gsum, fcenter, fradius, walls, rxy, rvel, rrad, doors, waiting,
+                     gsum, fcenter, fradius, walls, rxy, rvel, rrad, doors, waiting, heading,
                      prm):  # fmt: skip
     """Social-force velocity of walker i after dt (exact relaxation, forces held). A walker
     pushed off a leg of its route that the body can walk straight, to where a wall is in
@@ -360,7 +363,9 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     A walker waiting for a door (:func:`_door_wait`) heads for its spot beside it and slows
     to a stop there. The people, walls and group terms never make it walk backwards (the
     part of its target velocity against its heading is dropped: in a dense crowd people
-    stop rather than back away); the robot's may."""
+    stop rather than back away); the robot's may, while the gap between the bodies is below
+    ``robot_backing_gap``. ``heading[i]``: its heading (the unit direction it walks
+    towards) while a robot makes it back away, else 0."""
     k = links[i, RSTART] + cursor[i]
     wx, wy = route[k, 0], route[k, 1]
     px, py, r = pos[i, 0], pos[i, 1], radius[i]
@@ -380,6 +385,7 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     wx, wy = wx - pos[i, 0], wy - pos[i, 1]
     dw = math.hypot(wx, wy)
     ex, ey = (wx / dw, wy / dw) if dw > 1e-9 else (math.cos(yaw[i]), math.sin(yaw[i]))
+    heading[i, 0] = heading[i, 1] = 0.0
     fx, fy = _people_force(i, ex, ey, pos, vel, radius, links, state, fcenter, fradius, prm)
     gx, gy = _wall_force(pos[i, 0], pos[i, 1], vel[i, 0], vel[i, 1], radius[i], ex, ey, dw,
                          walls, prm)  # fmt: skip
@@ -391,10 +397,15 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     if ahead < 0.0:  # pressed by people and walls, a walker stops; it does not back away
         tx, ty = tx - ahead * ex, ty - ahead * ey
     reaction = props[i, REACTION] * prm[R_REACT]
-    if reaction > 0.0:  # a robot may make it back away
-        gx, gy = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad, prm,
-                              speed * ex, speed * ey)  # fmt: skip
+    if reaction > 0.0:  # a robot may make it back away, while it is close
+        gx, gy, gap = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad,
+                                   prm, speed * ex, speed * ey)  # fmt: skip
         tx, ty = tx + tau * reaction * gx, ty + tau * reaction * gy
+        ahead = tx * ex + ty * ey
+        if ahead < 0.0 and gap >= prm[G_BACK]:  # farther off, it stops for the robot
+            tx, ty = tx - ahead * ex, ty - ahead * ey
+        elif ahead < 0.0:
+            heading[i, 0], heading[i, 1] = ex, ey
     a = math.exp(-dt / tau)
     return tx + (vel[i, 0] - tx) * a, ty + (vel[i, 1] - ty) * a
 
@@ -412,8 +423,8 @@ def _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit, rxy,
     reaction *= prm[R_REACT]
     ax = ay = 0.0
     if reaction > 0.0:
-        ax, ay = _robot_force(i, pos, vel, radius, math.cos(yaw[i]), math.sin(yaw[i]), 0.0,
-                              rxy, rvel, rrad, prm, 0.0, 0.0)  # fmt: skip
+        ax, ay, _ = _robot_force(i, pos, vel, radius, math.cos(yaw[i]), math.sin(yaw[i]),
+                                 0.0, rxy, rvel, rrad, prm, 0.0, 0.0)  # fmt: skip
     k, c = prm[K_HOLD], prm[C_HOLD]
     den = 1.0 + dt * c + dt * dt * k
     return ((vel[i, 0] + dt * (k * ex + reaction * ax)) / den,
@@ -437,8 +448,8 @@ def _limit(vx, vy, vmax, px, py, r, dt, walls):
 
 @njit(cache=True, error_model="numpy")
 def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cursor, state,
-         route, anchor, leg_from, jit, noise, fcenter, fradius, gsum, doors, waiting, prm,
-         out):  # fmt: skip
+         route, anchor, leg_from, jit, noise, fcenter, fradius, gsum, doors, waiting, heading,
+         prm, out):  # fmt: skip
     """One update: states, group centres, members' (x, y, yaw) jitter, then all velocities."""
     _advance_routes(t, pos, vel, radius, props, links, cursor, state, route, anchor, leg_from,
                     walls, prm)  # fmt: skip
@@ -478,6 +489,7 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
                 rrad,
                 doors,
                 waiting,
+                heading,
                 prm,
             )
         else:
@@ -489,11 +501,19 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
 
 
 @njit(cache=True, error_model="numpy")
-def sync(positions, velocities, dt, pos, vel, yaw, state, links, fcenter, jit, prm):
-    """Store the simulated state; turn walkers to their motion, members to their centre."""
+def sync(positions, velocities, dt, pos, vel, yaw, state, links, fcenter, jit, way, back,
+         prm):  # fmt: skip
+    """Store the simulated state; turn walkers to their motion, members to their centre;
+    add to ``back`` the distance each walker moved against its heading ``way`` in the step
+    (0 unless a robot made it back away: :func:`_walker_velocity`)."""
     turn = 1.0 - math.exp(-dt / prm[T_YAW])
     first = pos.shape[0] - jit.shape[0]
     for i in range(pos.shape[0]):
+        if state[i] == WALKING:
+            along = ((positions[i, 0] - pos[i, 0]) * way[i, 0]
+                     + (positions[i, 1] - pos[i, 1]) * way[i, 1])  # fmt: skip
+            if along < 0.0:
+                back[i] -= along
         pos[i, 0], pos[i, 1] = positions[i, 0], positions[i, 1]
         vel[i, 0], vel[i, 1] = velocities[i, 0], velocities[i, 1]
         if state[i] == STANDING:

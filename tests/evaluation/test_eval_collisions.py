@@ -52,9 +52,10 @@ def test_the_columns_round_trip(tmp_path):
     with path.open(newline="") as f:
         rows = list(csv.DictReader(f))
     assert list(rows[0]) == list(CSV_COLUMNS)
-    assert list(CSV_COLUMNS[-len(COLLISION_COLUMNS) - 1 :]) == [
+    assert list(CSV_COLUMNS[-len(COLLISION_COLUMNS) - 2 :]) == [
         "scenario", "collision_kind", "collision_by", "collision_robot_speed",
         "collision_other_speed", "collision_robot_closing", "collision_other_closing",
+        "people_pushed_back",
     ]  # fmt: skip
     assert [rows[7][c] for c in COLLISION_COLUMNS] == ["person", "person", "0.0", "1.1", "0.0",
                                                        "0.95"]  # fmt: skip

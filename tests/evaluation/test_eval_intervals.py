@@ -24,6 +24,7 @@ from srpb_gym.evaluation.stats import (
     CSV_COLUMNS,
     GT_COLUMNS,
     PEOPLE_METRICS,
+    PUSHED_BACK_LABEL,
     describe,
     read_episodes,
     summarize,
@@ -200,7 +201,7 @@ def test_ground_truth_columns_round_trip(tmp_path):
     assert header[: 6 + len(METRIC_NAMES)] == ["env", "planner", "seed", "is_success",
                                                "collision", "timeout", *METRIC_NAMES]  # fmt: skip
     at = header.index("scenario")  # the collision attribution's columns come after it
-    assert header[at + 1 :] == list(COLLISION_COLUMNS)
+    assert header[at + 1 :] == [*COLLISION_COLUMNS, "people_pushed_back"]
     assert header[at - len(GT_COLUMNS) : at] == list(GT_COLUMNS)
     assert GT_COLUMNS[0] == "gt_m_goal" and "gt_m_psi" in GT_COLUMNS
     back = read_episodes(str(path))
@@ -239,10 +240,10 @@ def test_summary_and_table_cells():
     header, body = table(summary)
     assert header == ["metric", "unit", "a", "b"]
     labels = [r[0] for r in body]
-    assert labels[:4] == ["episodes", "success", "collision", "timeout"]
+    assert labels[:5] == ["episodes", "success", "collision", "timeout", PUSHED_BACK_LABEL]
     assert "m_psi (tracked)" in labels and "m_psi (ground truth)" in labels
     assert "m_obs" in labels and "m_obs (ground truth)" not in labels
-    assert len(labels) == 4 + len(METRIC_NAMES) + len(PEOPLE_METRICS)
+    assert len(labels) == 5 + len(METRIC_NAMES) + len(PEOPLE_METRICS)
     low, high = wilson(5, 10)
     assert body[1][2] == f"50 [{low:.1f}-{high:.1f}]"
     m = a["metrics"]["m_psi"]

@@ -298,6 +298,6 @@ def test_kernel_parameter_indices_follow_the_fields():
                 "hold_damping": m.C_HOLD, "formation_robot_reaction": m.F_REACT,
                 "yaw_min_speed": m.V_YAW, "robot_ttc_strength": m.K_TTC,
                 "robot_ttc_margin": m.M_TTC, "door_approach": m.D_APPROACH,
-                "door_wait_distance": m.D_WAIT}  # fmt: skip
-    assert len(names) == m.D_WAIT + 1
+                "door_wait_distance": m.D_WAIT, "robot_backing_gap": m.G_BACK}  # fmt: skip
+    assert len(names) == m.G_BACK + 1
     assert all(names[index] == name for name, index in expected.items())

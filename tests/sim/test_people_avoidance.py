@@ -114,6 +114,9 @@ def test_a_parked_robot_is_never_touched(env_id):
             _, _, term, trunc, info = env.step(action)
             assert not info["collision"], f"{env_id} seed {seed} t={info['t']:.1f}"
             done = term or trunc
+            assert ("people_pushed_back" in info) == done  # the last info only
+        pushed = env.unwrapped.sim.crowd.pushed_back
+        assert info["people_pushed_back"] == pushed.max(initial=0.0) >= 0.0
     env.close()
 
 
@@ -193,3 +196,62 @@ def test_door_turn_taking_can_be_switched_off():
     second = through((4.3, 4.0), (11.0, 4.0))
     _, waits = door_crowd([first, second], config=SocialForceConfig(door_approach=0.0))
     assert not waits.any()
+
+
+# ------------------------------------------------------------------ backing away
+CORRIDOR = np.array([[-20.0, 1.1, 20.0, 1.1], [-20.0, -1.1, 20.0, -1.1]])  # 2.2 m wide
+
+
+def herded(config=None, steps=200, keep=1.6):
+    """A walker from (0, 0.6) to (-15, 0.6) along a corridor meets a robot (radius 0.3)
+    that drives at it at 0.5 m/s from (-4, 0.27) on the side the walker gives way to and,
+    like a robot that minds personal space, stops while their centres are within
+    ``keep``. Returns the crowd and the smallest gap between their bodies [m]."""
+    crowd = Crowd(config)
+    walker = PersonLayout(position=(0.0, 0.6), yaw=math.pi, route=((-15.0, 0.6),),
+                          preferred_speed=1.0, radius=0.25)  # fmt: skip
+    crowd.reset([walker], [], CORRIDOR)
+    rxy, rvel = np.array([[-4.0, 0.27]]), np.zeros((1, 2))
+    pos, gap = crowd.position.copy(), math.inf
+    for k in range(steps):
+        rvel[0, 0] = 0.5 if np.hypot(*(rxy[0] - pos[0])) > keep else 0.0
+        v = crowd.desired_velocity(k * DT, DT, rxy, rvel, np.array([0.3])).copy()
+        pos += v * DT
+        rxy += rvel * DT
+        crowd.sync(pos, v)
+        gap = min(gap, float(np.hypot(*(pos[0] - rxy[0]))) - 0.55)
+    return crowd, gap
+
+
+def test_pushed_back_is_the_distance_moved_back_while_a_robot_makes_it_back_away():
+    crowd = Crowd()
+    walker = PersonLayout(position=(0.0, 0.0), yaw=0.0, route=((10.0, 0.0),),
+                          preferred_speed=1.0, radius=0.25)  # fmt: skip
+    crowd.reset([walker], [], np.zeros((0, 4)))
+    # a robot 0.35 m ahead, coming at 0.5 m/s, makes it back away; without one, moving
+    # back (as a walker does for a moment where its route turns) is not being pushed
+    moves = (((-0.1, 0.0), True, 0.1), ((0.05, 0.0), True, 0.1), ((-0.25, 0.0), False, 0.1),
+             ((-0.2, 0.0), True, 0.3), ((0.0, 0.2), True, 0.3))  # fmt: skip
+    for step, robot, expected in moves:
+        rxy = crowd.position + np.array([[0.9, 0.0]]) if robot else np.zeros((0, 2))
+        rvel = np.array([[-0.5, 0.0]])[: len(rxy)]
+        crowd.desired_velocity(0.0, DT, rxy, rvel, np.full(len(rxy), 0.3))
+        crowd.sync(crowd.position + np.array([step]), np.zeros((1, 2)))
+        assert crowd.pushed_back[0] == pytest.approx(expected)
+
+
+def test_a_robot_that_keeps_its_distance_herds_a_walker_unless_it_only_backs_off_close():
+    crowd, _ = herded()  # the default: a robot pushes a walker back from any distance
+    assert crowd.pushed_back[0] > 2.0
+    assert crowd.position[0, 0] > 1.0  # walked back up the corridor
+    crowd, gap = herded(SocialForceConfig(robot_backing_gap=0.3))
+    assert crowd.pushed_back[0] < 0.1  # it stops for the robot instead
+    assert gap > 0.05
+    assert SocialForceConfig(robot_backing_gap=math.inf).robot_backing_gap == math.inf
+    with pytest.raises(ValueError, match=">= 0"):
+        SocialForceConfig(robot_backing_gap=-1.0)
+
+
+def test_a_robot_that_drives_on_makes_a_close_walker_back_off():
+    crowd, _ = herded(SocialForceConfig(robot_backing_gap=0.3), keep=0.0, steps=60)
+    assert crowd.pushed_back[0] > 0.3  # backed away rather than be run over
