@@ -402,10 +402,11 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
                                    prm, speed * ex, speed * ey)  # fmt: skip
         tx, ty = tx + tau * reaction * gx, ty + tau * reaction * gy
         ahead = tx * ex + ty * ey
-        if ahead < 0.0 and gap >= prm[G_BACK]:  # farther off, it stops for the robot
-            tx, ty = tx - ahead * ex, ty - ahead * ey
-        elif ahead < 0.0:
-            heading[i, 0], heading[i, 1] = ex, ey
+        if ahead < 0.0 and gap < math.inf:  # (no robot: nothing to back away from)
+            if gap >= prm[G_BACK]:  # farther off, it stops for the robot
+                tx, ty = tx - ahead * ex, ty - ahead * ey
+            else:
+                heading[i, 0], heading[i, 1] = ex, ey
     a = math.exp(-dt / tau)
     return tx + (vel[i, 0] - tx) * a, ty + (vel[i, 1] - ty) * a
 
