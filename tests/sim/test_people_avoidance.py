@@ -91,6 +91,14 @@ def test_a_walker_keeps_clear_of_a_slow_robot_coming_at_it():
     assert gap > 0.05
 
 
+@pytest.mark.parametrize("robot", [((4.0, 0.0), (0.0, 0.0)), ((5.0, 0.02), (-0.15, 0.0))])
+def test_stopping_instead_of_backing_away_still_keeps_clear(robot):
+    close_only = SocialForceConfig(robot_backing_gap=0.3)
+    gap, crowd = walk_at(*robot, close_only)
+    assert gap > 0.05 and crowd.position[0, 0] > 8.0
+    assert crowd.pushed_back[0] == 0.0
+
+
 def test_without_the_ttc_term_a_walker_comes_closer():
     with_ttc, _ = walk_at((4.0, 0.05), (0.0, 0.0))
     without, _ = walk_at((4.0, 0.05), (0.0, 0.0), SocialForceConfig(robot_ttc_strength=0.0))
