@@ -61,7 +61,7 @@ from srpb_gym.evaluation.intervals import wilson
 from srpb_gym.evaluation.multi import robot_hits, success_by_robot
 from srpb_gym.evaluation.paired import mcnemar, signed_rank
 from srpb_gym.evaluation.spec import resolve_config
-from srpb_gym.evaluation.stats import PUSHED_BACK
+from srpb_gym.evaluation.stats import PUSHED_BACK, pushed_back_rate
 from srpb_gym.models import model_path
 from srpb_gym.registration import ENV_IDS
 from srpb_gym.seeds import TEST
@@ -206,13 +206,11 @@ def run_row(label: str, rows: list[EpisodeResult], robots: int = 1) -> dict[str,
     low, high = wilson(wins, n) or (float("nan"), float("nan"))
     collided = [r for r in rows if r.collision]
     by_robot = sum(1 for r in collided if r.first_collision and r.first_collision.by == "robot")
-    back = np.array([r.pushed_back for r in rows])
-    back = back[np.isfinite(back)]  # unknown in an older episodes.csv
-    pushed = 100.0 * float(np.mean(back > PUSHED_BACK)) if back.size else None
+    pushed = pushed_back_rate([r.pushed_back for r in rows])  # None: unknown (older csv)
     row = {"label": label, "episodes": n, "success": 100.0 * wins / n, "ci": [low, high],
            "collision": 100.0 * len(collided) / n,
            "robot_caused": 100.0 * by_robot / n,
-           "pushed_back": pushed}  # fmt: skip
+           "pushed_back": pushed[0] if pushed else None}  # fmt: skip
     if robots > 1:
         row["hit_robot"] = 100.0 * robot_hits(rows) / n
         row["success_by_robot"] = [100.0 * rate for rate in success_by_robot(rows)]

@@ -353,14 +353,22 @@ def _entry(
                      for r in rows if r.collision)  # fmt: skip
     entry["collision_by_rate"] = {c: 100.0 * causes[c] / len(rows)
                                   for c in (*CAUSES, UNATTRIBUTED)}  # fmt: skip
-    back = finite([r.pushed_back for r in rows])
+    back = [r.pushed_back for r in rows]
     entry["people_pushed_back"] = describe(back)
-    pushed = int((back > PUSHED_BACK).sum())
-    entry["pushed_back_rate"] = 100.0 * pushed / back.size if back.size else None
-    entry["pushed_back_rate_ci"] = wilson(pushed, back.size) if back.size else None
+    entry["pushed_back_rate"], entry["pushed_back_rate_ci"] = pushed_back_rate(back) or (None, None)
     entry["metrics"] = {m: describe([r.metrics[m] for r in rows]) for m in METRIC_NAMES}
     entry["metrics_gt"] = {m: describe([r.truth(m) for r in rows]) for m in METRIC_NAMES}
     return entry
+
+
+def pushed_back_rate(values: Sequence[float]) -> tuple[float, Any] | None:
+    """The share (%) of the known (finite) ``people_pushed_back`` values above
+    :data:`PUSHED_BACK`, with its Wilson 95 % interval; ``None`` when none is known."""
+    back = finite(values)
+    if back.size == 0:
+        return None
+    pushed = int((back > PUSHED_BACK).sum())
+    return 100.0 * pushed / back.size, wilson(pushed, back.size)
 
 
 # ---------------------------------------------------------------------------- tables

@@ -67,16 +67,25 @@ def walk_at(robot_xy, robot_vel, config=None, steps=120, speed=1.2):
     walker = PersonLayout(position=(0.0, 0.0), yaw=0.0, route=((10.0, 0.0),),
                           preferred_speed=speed, radius=0.25)  # fmt: skip
     crowd.reset([walker], [], np.zeros((0, 4)))
+    return run_with_robot(crowd, robot_xy, robot_vel, steps), crowd
+
+
+def run_with_robot(crowd, robot_xy, robot_vel, steps, drive=None):
+    """Step a crowd of one walker beside a robot (radius 0.3) from ``robot_xy`` at
+    ``robot_vel``; ``drive(robot_xy, walker_xy, robot_vel)`` may set the robot's velocity
+    before each step. Returns the smallest gap between their bodies [m]."""
     rxy = np.array([robot_xy], dtype=np.float64)
     rvel = np.array([robot_vel], dtype=np.float64)
     pos, gap = crowd.position.copy(), math.inf
     for k in range(steps):
+        if drive is not None:
+            drive(rxy[0], pos[0], rvel[0])
         v = crowd.desired_velocity(k * DT, DT, rxy, rvel, np.array([0.3])).copy()
         pos += v * DT
         rxy += rvel * DT
         crowd.sync(pos, v)
         gap = min(gap, float(np.hypot(*(pos[0] - rxy[0]))) - 0.55)
-    return gap, crowd
+    return gap
 
 
 @pytest.mark.parametrize("offset", [0.0, 0.05, -0.15, 0.3])
@@ -219,16 +228,11 @@ def herded(config=None, steps=200, keep=1.6):
     walker = PersonLayout(position=(0.0, 0.6), yaw=math.pi, route=((-15.0, 0.6),),
                           preferred_speed=1.0, radius=0.25)  # fmt: skip
     crowd.reset([walker], [], CORRIDOR)
-    rxy, rvel = np.array([[-4.0, 0.27]]), np.zeros((1, 2))
-    pos, gap = crowd.position.copy(), math.inf
-    for k in range(steps):
-        rvel[0, 0] = 0.5 if np.hypot(*(rxy[0] - pos[0])) > keep else 0.0
-        v = crowd.desired_velocity(k * DT, DT, rxy, rvel, np.array([0.3])).copy()
-        pos += v * DT
-        rxy += rvel * DT
-        crowd.sync(pos, v)
-        gap = min(gap, float(np.hypot(*(pos[0] - rxy[0]))) - 0.55)
-    return crowd, gap
+
+    def drive(robot, person, vel):
+        vel[0] = 0.5 if np.hypot(*(robot - person)) > keep else 0.0
+
+    return crowd, run_with_robot(crowd, (-4.0, 0.27), (0.0, 0.0), steps, drive)
 
 
 def test_pushed_back_is_the_distance_moved_back_while_a_robot_makes_it_back_away():
