@@ -12,6 +12,7 @@ import math
 import os
 import time
 import uuid
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -200,7 +201,9 @@ class SRPBNavEnv(gym.Env):
     (default) the scenario's ``robot`` entry, ``i`` its ``robots[i]`` entry (the route of
     robot i of the multi-robot environment), ``"random"`` one of its ``robots`` entries
     drawn for each episode with the environment's generator (to train a single robot for
-    every robot's route); the entries must have the ``robot`` entry's goal tolerance.
+    every robot's route), or a list of entries, one drawn for each episode (an entry
+    listed twice is drawn twice as often); the entries must have the ``robot`` entry's
+    goal tolerance.
     The arguments after ``render_mode`` and ``route`` are the environment's
     settings (:class:`~srpb_gym.settings.EnvSettings`, checked once when the environment
     is made; an unknown one is a ``TypeError``); ``settings=EnvSettings.from_kwargs({...})``
@@ -236,7 +239,8 @@ class SRPBNavEnv(gym.Env):
       its default ``"tracked"`` is the reward as before. ``route`` was added; by default
       the robot drives the scenario's ``robot`` entry, the episodes as before. The last
       info gained ``people_pushed_back``, and the crowd setting ``robot_backing_gap``
-      was added; its default (inf) is the people's motion as before.
+      was added; its default (inf) is the people's motion as before. ``route`` also
+      takes a list of entries.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}
@@ -247,7 +251,7 @@ class SRPBNavEnv(gym.Env):
         render_mode: str | None = None,
         settings: EnvSettings | None = None,
         *,
-        route: int | str | None = None,
+        route: int | str | Sequence[int] | None = None,
         **kwargs: Any,
     ) -> None:
         check_render_mode(render_mode, self.metadata["render_modes"])
@@ -400,6 +404,8 @@ class SRPBNavEnv(gym.Env):
         route = self.route
         if route == "random":
             route = int(self.np_random.integers(len(self.scenario.robots)))
+        elif isinstance(route, tuple):
+            route = route[int(self.np_random.integers(len(route)))]
         return episode_layout(self.scenario, self.np_random, options, route=route)
 
 

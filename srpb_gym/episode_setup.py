@@ -74,27 +74,35 @@ def episode_layout(
     return layout
 
 
-def route_choice(scenario: Scenario, route: Any) -> int | str | None:
+def route_choice(scenario: Scenario, route: Any) -> int | str | tuple[int, ...] | None:
     """The ``route`` argument of a single-robot environment, checked: ``None`` (the
-    scenario's ``robot`` entry), ``i`` (its ``robots[i]`` entry) or ``"random"`` (one of
-    its ``robots`` entries drawn for each episode). The entries must share the goal
-    tolerance of ``robot`` (the task's metric parameters hold one)."""
+    scenario's ``robot`` entry), ``i`` (its ``robots[i]`` entry), ``"random"`` (one of
+    its ``robots`` entries drawn for each episode) or a non-empty list of entries (one of
+    them drawn for each episode, each item equally often: an entry listed twice is drawn
+    twice as often), returned as a tuple. The entries must share the goal tolerance of
+    ``robot`` (the task's metric parameters hold one)."""
     if route is None:
         return None
-    if route == "random":
+    if isinstance(route, str) and route == "random":
         if not scenario.robots:
             raise InputError(f"scenario {scenario.name!r} has no robots entries to draw a "
                              f"route from", key="route")  # fmt: skip
         entries = list(range(len(scenario.robots)))
     elif isinstance(route, str):
-        raise InputError(f"expected a robots entry's index or 'random', got {route!r}",
-                         key="route")  # fmt: skip
+        raise InputError(f"expected a robots entry's index, a list of them or 'random', got "
+                         f"{route!r}", key="route")  # fmt: skip
+    elif isinstance(route, (list, tuple)):
+        if not route:
+            raise InputError("expected at least one robots entry in the list", key="route")
+        for item in route:
+            scenario.route_spec(item)
+        route = entries = tuple(int(item) for item in route)
     else:
         scenario.route_spec(route)
         route = int(route)
         entries = [route]
     tolerance = scenario.robot.goal_tolerance
-    for i in entries:
+    for i in sorted(set(entries)):
         if scenario.robots[i].goal_tolerance != tolerance:
             raise scenario.error(
                 f"robots[{i}].goal_tolerance",

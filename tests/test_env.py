@@ -449,10 +449,38 @@ def test_random_route_draws_every_entry_from_the_env_generator():
         assert env.sim.layout.robots == again.sim.layout.robots
 
 
+def test_a_list_of_routes_draws_its_entries_as_often_as_listed():
+    env = gym.make("SRPB-Crowd-v0", route=[0, 2, 2]).unwrapped
+    assert env.route == (0, 2, 2)
+    entries = []
+    for seed in range(90):
+        env.reset(seed=seed)
+        robot = env.sim.layout.robots[0]
+        entries.append(_entry_of(env.scenario, robot.start, robot.goal))
+    assert set(entries) == {0, 2}
+    # entry 2 is drawn with probability 2/3: 60 of 90 expected, 3 standard deviations 13
+    assert 47 <= entries.count(2) <= 73
+    again = gym.make("SRPB-Crowd-v0", route=(0, 2, 2)).unwrapped
+    for seed in (4, 11):
+        env.reset(seed=seed)
+        again.reset(seed=seed)
+        assert env.sim.layout.robots == again.sim.layout.robots
+    # a single entry listed is that entry's route
+    one, fixed = (gym.make("SRPB-Crowd-v0", route=r).unwrapped for r in ([1], 1))
+    one.reset(seed=7)
+    fixed.reset(seed=7)
+    for made in (one, fixed):
+        robot = made.sim.layout.robots[0]
+        assert _entry_of(made.scenario, robot.start, robot.goal) == 1
+
+
 @pytest.mark.parametrize(
     ("route", "message"),
     [
-        ("any", r"route: expected a robots entry's index or 'random', got 'any'"),
+        ("any", r"route: expected a robots entry's index, a list of them or 'random', got 'any'"),
+        ([], r"route: expected at least one robots entry in the list"),
+        ([0, 9], r"route: scenario 'crowd' has its robots entries 0-7, got 9"),
+        ([0, "1"], r"route: scenario 'crowd' has its robots entries 0-7, got '1'"),
         (8, r"route: scenario 'crowd' has its robots entries 0-7, got 8"),
         (-1, r"route: scenario 'crowd' has its robots entries 0-7, got -1"),
         (True, r"route: scenario 'crowd' has its robots entries 0-7, got True"),

@@ -204,3 +204,46 @@ def test_the_task_twin_of_the_shared_policy_differs_in_its_reward_and_start_only
     train = task[1]
     assert train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")] == kwargs
     assert not any("psi" in k for k in kwargs)
+
+
+def test_retraining_runs_the_seeds_of_every_model_side_by_side(monkeypatch):
+    import subprocess
+    import threading
+
+    from training import retrain_models as rm
+
+    names = ["ppo-crowd-srpb-3robots", "ppo-crowd-task-3robots"]
+    # the six first stages wait for each other: they must all be running at once
+    barrier = threading.Barrier(6, timeout=20)
+    ran, lock = [], threading.Lock()
+
+    def run(cmd, check):
+        stage = cmd[cmd.index("-m") + 1]
+        seed = cmd[cmd.index("--seed") + 1] if "--seed" in cmd else None
+        if stage == "srpb_gym":
+            barrier.wait()
+        with lock:
+            ran.append((stage, cmd[cmd.index("--reward") + 1] if "--reward" in cmd else None,
+                        seed))  # fmt: skip
+        failing = stage == "srpb_gym" and seed == "1" and "srpb" in cmd
+        return subprocess.CompletedProcess(cmd, 1 if failing else 0)
+
+    monkeypatch.setattr(rm.subprocess, "run", run)
+    monkeypatch.setattr(rm.sys, "argv", ["retrain_models", *names, "--seeds", "0", "1", "2",
+                                         "--jobs", "6", "--no-ship"])  # fmt: skip
+    assert rm.main() == 1  # one run failed
+    firsts = [r for r in ran if r[0] == "srpb_gym"]
+    seconds = [r for r in ran if r[0] == "training.multi_robot"]
+    assert len(firsts) == 6
+    # each run's second stage after its first; not after a failed first
+    assert sorted(seconds) == sorted(
+        ("training.multi_robot", reward, seed) for reward in ("srpb", "task")
+        for seed in "012" if (reward, seed) != ("srpb", "1")
+    )  # fmt: skip
+    for stage in seconds:
+        assert ran.index(("srpb_gym", *stage[1:])) < ran.index(stage)
+    # the chains are a model's commands by seed, the shipping command left out
+    plan = rm.commands(names[0], [0, 1, 2], 1)
+    chains = rm.seed_chains(plan, [0, 1, 2])
+    assert [len(c) for c in chains] == [2, 2, 2]
+    assert all(plan[-1] not in chain for chain in chains)

@@ -20,7 +20,8 @@ once on 200 test seeds (from 20,000,000: :data:`srpb_gym.seeds.TEST`) into
 ``srpb_gym/models/<name>/`` with its model card. The other seeds' runs are the controlled
 comparison (``scripts/controlled_comparison.py``); no seed is chosen over another. On a 2-core
 machine two runs side by side (``--jobs 2``, one torch thread each) finish sooner than one
-after the other.
+after the other. ``--jobs`` runs that many (model, seed) runs at once, a run's stages one
+after the other; each model is shipped once its runs are done.
 
 The generalist (``mix``) is warm-started from a specialist per scenario
 (:attr:`Recipe.teachers`), and the policy shared by 3 robots in crowd
@@ -145,10 +146,10 @@ class MultiRecipe:
     shipped single-robot model ``init`` (which it observes and is paid as: the env kwargs
     of its recipe), ``hyperparams`` for ``--hyperparams``. With ``routes_steps``, ``init``
     is first fine-tuned alone for that many steps (``srpb-gym train --init``, the same
-    hyperparameters) on routes drawn from every ``robots`` entry of the scenario
-    (``route=random``): a specialist trained on the single robot's route drives the
-    others' routes less well; the multi-robot run then starts from that run's ``best/``
-    checkpoint."""
+    hyperparameters) on routes drawn from the scenario's ``robots`` entries (``route``:
+    the env argument, ``random`` or a list of entries): a specialist trained on the
+    single robot's route drives the others' routes less well; the multi-robot run then
+    starts from that run's ``best/`` checkpoint."""
 
     scenario: str
     robots: int
@@ -157,6 +158,7 @@ class MultiRecipe:
     init: str
     hyperparams: tuple[str, ...] = ()
     routes_steps: int = 0
+    route: str = "random"
 
 
 #: the crowd specialist with its own PPO settings fine-tuned alone on every route of the
@@ -209,7 +211,7 @@ def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
         out += [[sys.executable, "-m", "srpb_gym", "train", "--env", env_id, "--reward", preset,
                  "--seed", str(seed), "--steps", str(multi.routes_steps), "--out", first,
                  "--no-progress", "--init", multi.init, "--env-kwargs", *kwargs,
-                 "route=random", *(["--hyperparams", *hyper] if hyper else [])]
+                 f"route={multi.route}", *(["--hyperparams", *hyper] if hyper else [])]
                 for seed, first in zip(seeds, inits)]  # fmt: skip
         inits = [f"{first}/best" for first in inits]
     out += [[sys.executable, "-m", "training.multi_robot", "--scenario", multi.scenario,
@@ -332,32 +334,53 @@ def main() -> int:
         order = waves(names, model_names())
     except ValueError as exc:
         parser.error(str(exc))
-    plans = {}
-    for wave in order:
-        at_once = min(max(1, args.jobs), len(wave))  # each name runs its seeds in turn
-        for name in wave:
-            plans[name] = commands(name, args.seeds, threads, not args.no_ship,
-                                   side_by_side=at_once)  # fmt: skip
     failed: set[str] = set()
-
-    def one(name: str) -> int:
-        teachers = {t for _, t in teachers_of(name)}
-        if teachers & failed:
-            print(f"{name}: not retrained, its teacher {sorted(teachers & failed)[0]} failed",
-                  file=sys.stderr, flush=True)  # fmt: skip
-            return 1
-        for cmd in plans[name]:
-            print("+ " + shlex.join(cmd), flush=True)
-            if not args.dry_run and subprocess.run(cmd, check=False).returncode != 0:
-                failed.add(name)
-                return 1
-        return 0
-
     rc = 0
     for wave in order:  # the teachers of the second wave are shipped by the first
+        ready = [n for n in wave if not _teacher_failed(n, failed)]
+        rc = max(rc, 1) if len(ready) < len(wave) else rc
+        at_once = min(max(1, args.jobs), len(ready) * len(args.seeds))
+        plans = {name: commands(name, args.seeds, threads, not args.no_ship,
+                                side_by_side=at_once) for name in ready}  # fmt: skip
+        runs = [(name, chain) for name in ready for chain in seed_chains(plans[name], args.seeds)]
         with ThreadPoolExecutor(max(1, args.jobs)) as pool:
-            rc = max(rc, *pool.map(one, wave))
+            codes = list(pool.map(lambda item: _run_chain(item[1], args.dry_run), runs))
+        for (name, _), code in zip(runs, codes):
+            if code:
+                failed.add(name)
+        ships = [(name, plans[name][-1]) for name in ready
+                 if not args.no_ship and name not in failed]  # fmt: skip
+        with ThreadPoolExecutor(max(1, args.jobs)) as pool:
+            codes += list(pool.map(lambda item: _run_chain([item[1]], args.dry_run), ships))
+        rc = max(rc, *codes, 0)
     return rc
+
+
+def seed_chains(plan: list[list[str]], seeds: list[int]) -> list[list[list[str]]]:
+    """A model's training commands (``plan`` from :func:`commands`, the shipping command
+    left out) as one chain per seed, in the order they run: a run's stages one after the
+    other, the seeds side by side."""
+    return [[cmd for cmd in plan if "--seed" in cmd and cmd[cmd.index("--seed") + 1] == str(seed)]
+            for seed in seeds]  # fmt: skip
+
+
+def _teacher_failed(name: str, failed: set[str]) -> bool:
+    teachers = {t for _, t in teachers_of(name)}
+    if teachers & failed:
+        print(f"{name}: not retrained, its teacher {sorted(teachers & failed)[0]} failed",
+              file=sys.stderr, flush=True)  # fmt: skip
+        return True
+    return False
+
+
+def _run_chain(chain: list[list[str]], dry_run: bool) -> int:
+    """Run the commands of ``chain`` in turn, up to the first that fails (its exit status
+    > 0 is returned as 1)."""
+    for cmd in chain:
+        print("+ " + shlex.join(cmd), flush=True)
+        if not dry_run and subprocess.run(cmd, check=False).returncode != 0:
+            return 1
+    return 0
 
 
 if __name__ == "__main__":
