@@ -239,8 +239,8 @@ class SRPBNavEnv(gym.Env):
       its default ``"tracked"`` is the reward as before. ``route`` was added; by default
       the robot drives the scenario's ``robot`` entry, the episodes as before. The last
       info gained ``people_pushed_back``, and the crowd setting ``robot_backing_gap``
-      was added; its default (inf) is the people's motion as before. ``route`` also
-      takes a list of entries.
+      was added; its default (inf) is the people's motion as before (with a finite gap
+      people also never walk into a robot). ``route`` also takes a list of entries.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

@@ -87,7 +87,13 @@ class SocialForceConfig:
     walker back from any distance: a robot that keeps a walker's distance while driving
     at it can herd the walker back along its route (in ``corridor``, along the wall for
     metres). Each walker's distance moved against its heading is kept
-    (:attr:`Crowd.pushed_back`; ``info["people_pushed_back"]`` at an episode's end).
+    (:attr:`Crowd.pushed_back`; ``info["people_pushed_back"]`` at an episode's end). With
+    a finite gap, people who react to the robot also never walk into one: the part of a
+    person's velocity that would close on a robot's body within the step by more than the
+    gap leaves (less 2 cm and what the robot's own motion closes) is cut, and where a wall
+    turns it back towards the robot the person slows down instead. Pressed between another
+    person and a robot, a walker no longer bounces into the robot; a robot that drives
+    into a person still reaches it.
 
     Doors (the layout's ``doors``: openings narrower than one body can share, found from
     the walls): walkers take turns. A walker whose next waypoint, or the one after, lies

@@ -20,6 +20,7 @@ from srpb_gym.sim.geometry import segment_distance, wall_within
 WAITING, WALKING, STOPPED, STANDING = 0, 1, 2, 3  # values of Crowd.state
 CUTOFF = 10.0  # repulsions are dropped beyond this many ranges B (factor exp(-10))
 SLIDE_SPEED = 0.05  # [m/s] a walker slower than this along a wall picks a side afresh
+KEEP_OFF = 0.02  # [m] of the gap to a robot that a person who stops for robots never walks into
 # Columns of the per-person parameter table (float) and link table (int).
 V0, TAU, REACTION, VMAX, DELAY, JITTER = range(6)
 GROUP, FORMATION, RSTART, RLEN, LOOP = range(5)
@@ -433,6 +434,30 @@ def _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit, rxy,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _keep_off(vx, vy, px, py, r, dt, rxy, rvel, rrad, stop):
+    """Keep a person's own motion from closing on any robot's body within dt by more than
+    the gap leaves, less ``KEEP_OFF`` and what the robot's own motion closes in that time
+    (a robot that drives into a person still reaches it): the part of the velocity towards
+    the robot is cut to that (``stop``: the whole velocity is scaled down instead, which
+    keeps it clear of the walls where the cut velocity was)."""
+    for k in range(rxy.shape[0]):
+        nx, ny = px - rxy[k, 0], py - rxy[k, 1]
+        d = math.sqrt(nx * nx + ny * ny)
+        if d < 1e-9:
+            continue
+        nx, ny = nx / d, ny / d
+        approach = -(vx * nx + vy * ny)
+        closing = max(rvel[k, 0] * nx + rvel[k, 1] * ny, 0.0) * dt
+        allowed = max(d - r - rrad[k] - KEEP_OFF - closing, 0.0) / dt
+        if approach > allowed:
+            if stop:
+                vx, vy = vx * allowed / approach, vy * allowed / approach
+            else:
+                vx, vy = vx + (approach - allowed) * nx, vy + (approach - allowed) * ny
+    return vx, vy
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _limit(vx, vy, vmax, px, py, r, dt, walls):
     """Cap the speed, then keep the body from reaching any wall within dt."""
     s = math.sqrt(vx * vx + vy * vy)
@@ -497,8 +522,17 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
             waiting[i] = 0
             vx, vy = _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit,
                                     rxy, rvel, rrad, prm)  # fmt: skip
-        out[i, 0], out[i, 1] = _limit(vx, vy, props[i, VMAX], pos[i, 0], pos[i, 1], radius[i],
-                                      dt, walls)  # fmt: skip
+        # people who stop for a robot (a finite robot_backing_gap) never step into one
+        reaction = prm[F_REACT] if state[i] == STANDING else props[i, REACTION]
+        keep_off = prm[G_BACK] < math.inf and reaction * prm[R_REACT] > 0.0
+        if keep_off:
+            vx, vy = _keep_off(vx, vy, pos[i, 0], pos[i, 1], radius[i], dt, rxy, rvel, rrad,
+                               False)  # fmt: skip
+        vx, vy = _limit(vx, vy, props[i, VMAX], pos[i, 0], pos[i, 1], radius[i], dt, walls)
+        if keep_off:  # (the walls may have turned it back towards a robot)
+            vx, vy = _keep_off(vx, vy, pos[i, 0], pos[i, 1], radius[i], dt, rxy, rvel, rrad,
+                               True)  # fmt: skip
+        out[i, 0], out[i, 1] = vx, vy
 
 
 @njit(cache=True, error_model="numpy")

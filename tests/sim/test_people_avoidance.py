@@ -114,8 +114,10 @@ def test_without_the_ttc_term_a_walker_comes_closer():
     assert without < with_ttc
 
 
-def test_an_invisible_robot_is_walked_into():
-    gap, _ = walk_at((4.0, 0.0), (0.0, 0.0), SocialForceConfig(robot_reaction=0.0))
+@pytest.mark.parametrize("backing_gap", [math.inf, 0.3])
+def test_an_invisible_robot_is_walked_into(backing_gap):
+    config = SocialForceConfig(robot_reaction=0.0, robot_backing_gap=backing_gap)
+    gap, _ = walk_at((4.0, 0.0), (0.0, 0.0), config)
     assert gap < 0.0
 
 
@@ -267,3 +269,41 @@ def test_a_robot_that_keeps_its_distance_herds_a_walker_unless_it_only_backs_off
 def test_a_robot_that_drives_on_makes_a_close_walker_back_off():
     crowd, _ = herded(SocialForceConfig(robot_backing_gap=0.3), keep=0.0, steps=60)
     assert crowd.pushed_back[0] > 0.3  # backed away rather than be run over
+
+
+def test_people_who_stop_for_robots_never_walk_into_one():
+    """With ``robot_backing_gap``, a person's own velocity never closes on a robot by more
+    than the gap leaves (less the robot's own closing): a robot that drives straight at its
+    goal through the crowd is never hit by a person. (By default, on these seeds, a walker
+    squeezed between another person and the robot was: seed 17.)"""
+    from srpb_gym.planners import knowledge_for, make_planner
+
+    env = gym.make("SRPB-Crowd-v0", crowd={"robot_backing_gap": 0.3})
+    base = env.unwrapped
+    crowd, planner = base.sim.crowd, make_planner("go-to-goal")
+    desired, worst = crowd.desired_velocity, [-math.inf]
+
+    def checked(t, dt, rxy, rvel, rrad, walls=None, rng=None):
+        pos = crowd.position.copy()
+        v = desired(t, dt, rxy, rvel, rrad, walls, rng)
+        off = pos - rxy[0, :2]
+        dist = np.hypot(off[:, 0], off[:, 1])
+        n = off / dist[:, None]
+        own = -(v * n).sum(axis=1)  # each person's own closing speed
+        closing = np.maximum(n @ rvel[0, :2], 0.0) * dt
+        room = np.maximum(dist - crowd.radius - rrad[0] - sf.KEEP_OFF - closing, 0.0)
+        worst[0] = max(worst[0], float((own * dt - room).max()))
+        return v
+
+    crowd.desired_velocity = checked
+    for seed in range(20):
+        obs, _ = env.reset(seed=seed)
+        planner.reset(knowledge_for(planner, base.knowledge))
+        done = False
+        while not done:
+            base.set_planning_time(0.001)
+            action = planner.act(obs, knowledge_for(planner, base.knowledge))
+            obs, _, terminated, truncated, info = env.step(action)
+            done = terminated or truncated
+        assert info.get("collision_by") != "person", f"seed {seed}"
+    assert worst[0] <= 1e-9
