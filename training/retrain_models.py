@@ -374,8 +374,8 @@ def _teacher_failed(name: str, failed: set[str]) -> bool:
 
 
 def _run_chain(chain: list[list[str]], dry_run: bool) -> int:
-    """Run the commands of ``chain`` in turn, up to the first that fails (its exit status
-    > 0 is returned as 1)."""
+    """Run the commands of ``chain`` in turn, up to the first that fails: 1 if one did
+    (any non-zero exit status), else 0."""
     for cmd in chain:
         print("+ " + shlex.join(cmd), flush=True)
         if not dry_run and subprocess.run(cmd, check=False).returncode != 0:
