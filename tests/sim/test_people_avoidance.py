@@ -274,8 +274,8 @@ def test_a_robot_that_drives_on_makes_a_close_walker_back_off():
 def test_people_who_stop_for_robots_never_walk_into_one():
     """With ``robot_backing_gap``, a person's own velocity never closes on a robot by more
     than the gap leaves (less the robot's own closing): a robot that drives straight at its
-    goal through the crowd is never hit by a person. (By default, on these seeds, a walker
-    squeezed between another person and the robot was: seed 17.)"""
+    goal through the crowd is never hit by a person. (Without the rule, a walker squeezed
+    between another person and the robot hit it in seed 17.)"""
     from srpb_gym.planners import knowledge_for, make_planner
 
     env = gym.make("SRPB-Crowd-v0", crowd={"robot_backing_gap": 0.3})
