@@ -462,9 +462,7 @@ def table(planners: dict[str, dict[str, Any]]) -> tuple[list[str], list[list[str
 
 def _pushed_cell(entry: dict[str, Any]) -> str:
     """``3 [1.0-8.6]``: the share of episodes with a walker pushed back (``n/a``: unknown)."""
-    if entry.get("pushed_back_rate") is None:
-        return "n/a"
-    return f"{rate(entry['pushed_back_rate'])} {interval(*entry['pushed_back_rate_ci'], fmt=rate)}"
+    return "n/a" if entry.get("pushed_back_rate") is None else rate_cell(entry, "pushed_back")
 
 
 def format_text(title: str, header: list[str], rows: list[list[str]]) -> str:

@@ -355,6 +355,13 @@ def _door_wait(i, pos, vel, radius, links, cursor, state, route, doors, waiting,
 
 
 @njit(cache=True, inline="always", error_model="numpy")
+def _reaction(i, state, props, prm):
+    """How strongly person i reacts to robots: a formation member standing in it the
+    formations' reaction, anyone else its own, times the crowd's ``robot_reaction``."""
+    return (prm[F_REACT] if state[i] == STANDING else props[i, REACTION]) * prm[R_REACT]
+
+
+@njit(cache=True, inline="always", error_model="numpy")
 def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, route, leg_from,
                      gsum, fcenter, fradius, walls, rxy, rvel, rrad, doors, waiting, heading,
                      prm):  # fmt: skip
@@ -397,7 +404,7 @@ def _walker_velocity(i, dt, pos, vel, yaw, radius, props, links, cursor, state, 
     ahead = tx * ex + ty * ey
     if ahead < 0.0:  # pressed by people and walls, a walker stops; it does not back away
         tx, ty = tx - ahead * ex, ty - ahead * ey
-    reaction = props[i, REACTION] * prm[R_REACT]
+    reaction = _reaction(i, state, props, prm)
     if reaction > 0.0:  # a robot may make it back away, while it is close
         gx, gy, gap = _robot_force(i, pos, vel, radius, ex, ey, prm[EVADE], rxy, rvel, rrad,
                                    prm, speed * ex, speed * ey)  # fmt: skip
@@ -417,12 +424,10 @@ def _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit, rxy,
                    prm):  # fmt: skip
     """Velocity of standing person i after dt: implicit spring-damper to its target."""
     ex, ey = anchor[i, 0] - pos[i, 0], anchor[i, 1] - pos[i, 1]
-    reaction = props[i, REACTION]
     if state[i] == STANDING:
         m = i - (pos.shape[0] - jit.shape[0])
         ex, ey = ex + jit[m, 0], ey + jit[m, 1]
-        reaction = prm[F_REACT]
-    reaction *= prm[R_REACT]
+    reaction = _reaction(i, state, props, prm)
     ax = ay = 0.0
     if reaction > 0.0:
         ax, ay, _ = _robot_force(i, pos, vel, radius, math.cos(yaw[i]), math.sin(yaw[i]),
@@ -491,6 +496,7 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
         sigma = props[pos.shape[0] - jit.shape[0] + m, JITTER] * math.sqrt(1.0 - a * a)
         for c in range(3):
             jit[m, c] = a * jit[m, c] + sigma * noise[m, c]
+    stops = prm[G_BACK] < math.inf  # people who stop for a robot never step into one
     for i in range(pos.shape[0]):
         if state[i] == WALKING:
             vx, vy = _walker_velocity(
@@ -522,9 +528,7 @@ def step(t, dt, walls, rxy, rvel, rrad, pos, vel, yaw, radius, props, links, cur
             waiting[i] = 0
             vx, vy = _hold_velocity(i, dt, pos, vel, yaw, radius, props, state, anchor, jit,
                                     rxy, rvel, rrad, prm)  # fmt: skip
-        # people who stop for a robot (a finite robot_backing_gap) never step into one
-        reaction = prm[F_REACT] if state[i] == STANDING else props[i, REACTION]
-        keep_off = prm[G_BACK] < math.inf and reaction * prm[R_REACT] > 0.0
+        keep_off = stops and _reaction(i, state, props, prm) > 0.0
         if keep_off:
             vx, vy = _keep_off(vx, vy, pos[i, 0], pos[i, 1], radius[i], dt, rxy, rvel, rrad,
                                False)  # fmt: skip
