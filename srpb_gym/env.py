@@ -70,7 +70,7 @@ class SRPBNavEnv(gym.Env):
     | index | element | unit before scaling | scale |
     | --- | --- | --- | --- |
     | 0 | distance to the goal | m | / 20 (``goal_scale``) |
-    | 1, 2 | cos, sin of the bearing of the goal | - | - |
+    | 1, 2 | cos, sin of the bearing of the goal | - | x min(1, d / ``goal_fade``) |
     | 3, 4 | cos, sin of (goal yaw - robot yaw) | - | - |
     | 5 | measured vx | m/s | / 0.5 (the largest speed) |
     | 6 | measured vy (0 for a differential drive) | m/s | / 0.3 (vy_max) |
@@ -92,7 +92,10 @@ class SRPBNavEnv(gym.Env):
     their ``fsi`` value falls to 0.01 (groups: tracks slower than 0.3 m/s, tracked for 1 s
     or more, within ``group_distance``, 3 m, of another), so that the robot sees an
     F-formation as an obstacle; the physical lidar and the reward are unchanged (0: none,
-    the default; see :mod:`srpb_gym.observation`). Models trained by ``srpb-gym train``
+    the default; see :mod:`srpb_gym.observation`). ``goal_fade=0.5`` fades the goal's
+    bearing to (0, 0) within 0.5 m of the goal (scaled by the distance d over 0.5 m),
+    where the bearing of a goal a centimetre away turns with every millimetre moved (0:
+    never, the default). Models trained by ``srpb-gym train``
     record these settings and observe with them in any environment
     (:mod:`srpb_gym.planners.learned`).
 
@@ -241,6 +244,8 @@ class SRPBNavEnv(gym.Env):
       info gained ``people_pushed_back``, and the crowd setting ``robot_backing_gap``
       was added; its default (inf) is the people's motion as before (with a finite gap
       people also never walk into a robot). ``route`` also takes a list of entries.
+      The observation setting ``goal_fade`` was added; its default (0) is the
+      observation as before.
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 10}

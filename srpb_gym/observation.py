@@ -5,7 +5,7 @@ Layout of the flat vector (float32, every element in [-1, 1]; robot frame: x ahe
 | slice | element | normalisation |
 | --- | --- | --- |
 | 0 | distance to the goal | / ``goal_scale``, clipped to 1 |
-| 1, 2 | cos, sin of the goal's bearing | - |
+| 1, 2 | cos, sin of the goal's bearing | x min(1, distance / ``goal_fade``) |
 | 3, 4 | cos, sin of (goal yaw - robot yaw) | - |
 | 5, 6, 7 | measured vx, vy, omega | / the robot's largest speed, / ``w_max`` |
 | 8 .. 8+L | lidar: shortest range r in each of ``lidar_bins`` equal sectors | see below |
@@ -15,6 +15,13 @@ Each person slot: x, y (relative position, robot frame) / ``people_range``; vx, 
 (relative velocity, robot frame) / ``speed_scale``; the position standard deviation along
 the robot's x and y axes / ``uncertainty_scale``; presence (1, or 0 for an empty slot,
 whose other elements are 0). Values are clipped to [-1, 1].
+
+``goal_fade``: a distance [m] within which the goal's bearing fades to (0, 0) at the goal
+(its cos and sin scaled by distance / ``goal_fade``); 0 (default): never. The bearing of
+a goal a centimetre away turns with every millimetre the robot moves: a policy that
+steers by it at the goal turns to and fro there instead of turning onto the goal's
+heading (elements 3, 4). Faded, it points the same way with a length that tells the
+last centimetres apart.
 
 ``lidar_encoding``: ``"linear"`` (default) r / range_max, or ``"log"``
 log(r / range_min) / log(range_max / range_min), both in [0, 1] (readings below range_min
@@ -83,6 +90,7 @@ class ObservationConfig:
     lidar_encoding: str = "linear"  # "linear" (r / range_max) or "log" (see the module doc)
     lidar_groups: float = 0.0  # fsi level of the O-space contours drawn into the lidar (0: none)
     group_distance: float = 3.0  # m, standing tracks this close to another form a group
+    goal_fade: float = 0.0  # m, the goal's bearing fades to (0, 0) within this (0: never)
 
     def __post_init__(self) -> None:
         if self.type not in OBSERVATION_TYPES:
@@ -95,6 +103,9 @@ class ObservationConfig:
             )
         if self.lidar_bins < 1 or self.people < 0:
             raise ValueError("lidar_bins must be >= 1 and people >= 0")
+        if not (math.isfinite(self.goal_fade) and self.goal_fade >= 0.0):
+            raise ValueError(f"goal_fade must be a distance >= 0 (0: the bearing never "
+                             f"fades), got {self.goal_fade!r}")  # fmt: skip
         if not 0.0 <= self.lidar_groups < 1.0:
             raise ValueError(f"lidar_groups must be in [0, 1) (0: no O-spaces in the lidar), "
                              f"got {self.lidar_groups!r}")  # fmt: skip
@@ -118,8 +129,10 @@ def fill_observation(pose, goal, velocity, vel_scale, scan, edges, range_min, ra
     c, s = math.cos(yaw), math.sin(yaw)
     dx, dy = goal[0] - x, goal[1] - y
     bearing = math.atan2(dy, dx) - yaw
-    out[0] = min(math.hypot(dx, dy) / scales[0], 1.0)
-    out[1], out[2] = math.cos(bearing), math.sin(bearing)
+    dist = math.hypot(dx, dy)
+    out[0] = min(dist / scales[0], 1.0)
+    fade = min(dist / scales[4], 1.0) if scales[4] > 0.0 else 1.0
+    out[1], out[2] = fade * math.cos(bearing), fade * math.sin(bearing)
     out[3], out[4] = math.cos(goal[2] - yaw), math.sin(goal[2] - yaw)
     for k in range(3):
         out[5 + k] = min(max(velocity[k] / vel_scale[k], -1.0), 1.0)
@@ -136,10 +149,10 @@ def fill_observation(pose, goal, velocity, vel_scale, scan, edges, range_min, ra
     base = 8 + bins
     k_slots = (out.shape[0] - base) // 7
     n = xy.shape[0]
-    dist = np.empty(n)
+    near = np.empty(n)
     for i in range(n):
-        dist[i] = math.hypot(xy[i, 0] - x, xy[i, 1] - y)
-    order[:n] = np.argsort(dist)
+        near[i] = math.hypot(xy[i, 0] - x, xy[i, 1] - y)
+    order[:n] = np.argsort(near)
     for slot in range(k_slots):
         o = base + 7 * slot
         if slot >= n:
@@ -251,7 +264,7 @@ class ObservationBuilder:
         self._log = config.lidar_encoding == "log"
         self.vel_scale = np.array([v_scale, vy_scale if vy_scale > 0 else v_scale, w_max])
         self.scales = np.array([config.goal_scale, config.people_range, config.speed_scale,
-                                config.uncertainty_scale])  # fmt: skip
+                                config.uncertainty_scale, config.goal_fade])  # fmt: skip
         self.size = GOAL + VELOCITY + bins + PERSON * config.people
         self.bins = bins
         self._order = np.zeros(64, dtype=np.int64)

@@ -350,6 +350,34 @@ def test_empty_people_slots_are_zero_and_values_clip():
     assert obs[8 + 2 + 7 :].tolist() == [0.0] * 7
 
 
+def test_goal_fade_by_hand():
+    """Within ``goal_fade`` of the goal its bearing's cos and sin are scaled by distance /
+    goal_fade (its direction kept); farther away, and with the default 0, nothing changes."""
+    plain = ObservationBuilder(ObservationConfig(lidar_bins=2, people=1), 4, 10.0, 0.5, 0.3,
+                               1.0)  # fmt: skip
+    faded = ObservationBuilder(ObservationConfig(lidar_bins=2, people=1, goal_fade=0.5), 4,
+                               10.0, 0.5, 0.3, 1.0)  # fmt: skip
+    pose = np.array([1.0, 2.0, math.pi / 2])  # facing +y
+    for goal, length in (((1.1, 2.0, 0.3), 0.2), ((0.7, 2.4, 0.3), 1.0), ((1.0, 2.5, 1.0), 1.0),
+                         ((4.0, 7.0, 0.0), 1.0), ((1.0, 2.0, 2.0), 0.0)):  # fmt: skip
+        goal = np.array(goal)
+        args = (pose, goal, np.array([0.1, 0.0, 0.2]), np.linspace(1.0, 9.0, 4), hand_tracks())
+        a, b = plain.build(*args), faded.build(*args)
+        distance = math.hypot(goal[0] - pose[0], goal[1] - pose[1])
+        assert length == pytest.approx(min(distance / 0.5, 1.0))
+        np.testing.assert_allclose(b[1:3], length * a[1:3], atol=1e-7)
+        assert np.array_equal(np.delete(a, [1, 2]), np.delete(b, [1, 2]))
+    # the goal 0.1 m to the robot's right: a unit bearing (0, -1) at the default
+    to_the_right = plain.build(pose, np.array([1.1, 2.0, 0.0]), np.zeros(3), np.ones(4),
+                               hand_tracks())  # fmt: skip
+    np.testing.assert_allclose(to_the_right[1:3], [0.0, -1.0], atol=1e-7)
+    for bad in (-0.1, math.nan, math.inf):
+        with pytest.raises(ValueError, match="goal_fade must be a distance >= 0"):
+            ObservationConfig(goal_fade=bad)
+    with pytest.raises(InputError, match="goal_fade"):
+        gym.make("SRPB-Corridor-v0", observation={"goal_fade": -1.0})
+
+
 def test_log_lidar_encoding_by_hand():
     """log(r / range_min) / log(range_max / range_min) of each sector's shortest range, the
     rest of the observation as with the linear encoding; readings below range_min read 0."""
