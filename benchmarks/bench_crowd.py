@@ -4,19 +4,23 @@ Each crowd has walkers on looping routes in a 10 m x 10 m room with 10 wall segm
 moving robot, and two standing F-formations among the people (for 2 people: one walker and
 one single-member formation). Prints microseconds per call (best of --repeat runs of
 --steps calls each, after a warm-up that loads or compiles the kernels) and the cost of
-``Crowd.sync``.
+``Crowd.sync``, for the default crowd (robots pushed back from any distance) and, side by
+side, for people who back away from a robot only within ``--backing-gap`` and never walk
+into one (``SocialForceConfig.robot_backing_gap``: a check of every person against every
+robot in each update).
 
-    python benchmarks/bench_crowd.py [--steps 5000] [--repeat 5]
+    python benchmarks/bench_crowd.py [--steps 5000] [--repeat 5] [--backing-gap 0.3]
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 
 import numpy as np
 
-from srpb_gym.sim.crowd import Crowd
+from srpb_gym.sim.crowd import Crowd, SocialForceConfig
 from srpb_gym.sim.layout import FormationLayout, PersonLayout
 
 
@@ -49,10 +53,11 @@ def crowd_layout(n: int, seed: int = 0) -> tuple[list[PersonLayout], list[Format
     return people, formations
 
 
-def time_crowd(n: int, steps: int, repeat: int) -> tuple[float, float]:
-    """Best microseconds per desired_velocity and per sync call for ``n`` people."""
+def time_crowd(n: int, steps: int, repeat: int, gap: float = math.inf) -> tuple[float, float]:
+    """Best microseconds per desired_velocity and per sync call for ``n`` people (``gap``:
+    the robot backing gap, m)."""
     people, formations = crowd_layout(n)
-    crowd = Crowd()
+    crowd = Crowd(SocialForceConfig(robot_backing_gap=gap))
     rng = np.random.default_rng(1)
     walls = room_walls()
     crowd.reset(people, formations, walls, rng)
@@ -80,13 +85,21 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--steps", type=int, default=5000)
     parser.add_argument("--repeat", type=int, default=5)
+    parser.add_argument("--backing-gap", type=float, default=0.3, metavar="M",
+                        help="the finite robot backing gap timed beside the default")  # fmt: skip
     args = parser.parse_args()
+    if not (args.backing_gap >= 0 and math.isfinite(args.backing_gap)):
+        parser.error(f"--backing-gap must be a finite distance >= 0, got {args.backing_gap}")
     t0 = time.perf_counter()
-    time_crowd(2, 10, 1)  # load (or compile) the kernels
+    for gap in (math.inf, args.backing_gap):
+        time_crowd(2, 10, 1, gap)  # load (or compile) the kernels
     print(f"warm-up (load or compile): {time.perf_counter() - t0:.2f} s")
     for n in (2, 10, 20):
         us_v, us_s = time_crowd(n, args.steps, args.repeat)
-        print(f"{n:3d} people: desired_velocity {us_v:6.2f} us/call, sync {us_s:5.2f} us/call")
+        gap_v, _ = time_crowd(n, args.steps, args.repeat, args.backing_gap)
+        print(f"{n:3d} people: desired_velocity {us_v:6.2f} us/call (backing gap "
+              f"{args.backing_gap:g} m: {gap_v:6.2f}, {gap_v / us_v:.2f}x), sync {us_s:5.2f} "
+              "us/call")  # fmt: skip
 
 
 if __name__ == "__main__":
