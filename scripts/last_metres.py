@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import math
 import os
 import sys
@@ -34,6 +35,12 @@ from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.metrics.record import R
 
 
+@functools.lru_cache(maxsize=64)
+def _listing(where: str) -> tuple[str, ...]:
+    """The ground-truth record files of one records folder (read once)."""
+    return tuple(n for n in os.listdir(where) if n.endswith("_gt.npz"))
+
+
 def record_path(folder: str, env: str, planner: str, seed: int, robot: str) -> str:
     """The ground-truth record of one episode row (``robot`` empty: a single-robot run).
     Records are named ``<scenario>_seed<seed>[_robot<r>]_gt.npz``; the scenario is found
@@ -41,7 +48,7 @@ def record_path(folder: str, env: str, planner: str, seed: int, robot: str) -> s
     where = os.path.join(folder, "episodes", env, planner)
     tail = f"_seed{seed}" + (f"_robot{robot}" if robot != "" else "") + "_gt.npz"
     try:
-        names = [n for n in os.listdir(where) if n.endswith(tail)]
+        names = [n for n in _listing(where) if n.endswith(tail)]
     except OSError:
         raise InputError(f"no episode records for {env} / {planner} (the eval output's "
                          "records are needed)", where) from None  # fmt: skip
