@@ -19,7 +19,6 @@ is the one of the record's last sample.
 from __future__ import annotations
 
 import argparse
-import csv
 import functools
 import math
 import os
@@ -31,6 +30,7 @@ import numpy as np
 
 from srpb_gym.angles import wrap_angle
 from srpb_gym.errors import InputError
+from srpb_gym.evaluation.stats import read_episodes
 from srpb_gym.metrics.io_npz import load_record
 from srpb_gym.metrics.record import R
 
@@ -72,24 +72,12 @@ def last_metres(path: str, radius: float) -> tuple[float, float, float]:
 
 def summarise(folder: str, radius: float, tolerance: float) -> list[str]:
     """One line per (environment, planner, robot) of the eval output ``folder``."""
-    table = os.path.join(folder, "episodes.csv")
-    try:
-        with open(table, newline="") as fh:
-            rows = list(csv.DictReader(fh))
-    except OSError as exc:
-        raise InputError(f"cannot read the eval output's episode table ({exc.strerror})",
-                         table) from None  # fmt: skip
     groups: dict[tuple[str, str, str], list[tuple[bool, float, float, float]]]
     groups = defaultdict(list)
-    for line, row in enumerate(rows, start=2):
-        try:
-            key = (row["env"], row["planner"], row.get("robot") or "")
-            success, seed = row["is_success"] == "1", int(row["seed"])
-        except (KeyError, ValueError) as exc:
-            raise InputError(f"not an episode row of srpb-gym eval ({exc})", table,
-                             line=line) from None  # fmt: skip
-        groups[key].append((success, *last_metres(record_path(folder, *key[:2], seed,
-                                                              key[2]), radius)))  # fmt: skip
+    for row in read_episodes(os.path.join(folder, "episodes.csv")):
+        key = (row.env, row.planner, "" if row.robot is None else str(row.robot))
+        path = record_path(folder, row.env, row.planner, row.seed, key[2])
+        groups[key].append((row.is_success, *last_metres(path, radius)))
     out = []
     for (env, planner, robot), episodes in groups.items():
         spent = np.array([s for ok, s, _, _ in episodes if ok])

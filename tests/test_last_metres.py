@@ -57,12 +57,11 @@ def test_summary_of_a_multi_robot_eval(tmp_path, capsys):
 def test_bad_folders_are_clear_errors(tmp_path, capsys):
     assert lm.main([str(tmp_path)]) == 2
     assert "episodes.csv" in capsys.readouterr().err
-    (tmp_path / "episodes.csv").write_text("env,planner,seed,robot,is_success\n"
-                                           "SRPB-Crowd-v0,dwa,x,,1\n")  # fmt: skip
-    with pytest.raises(InputError, match=r"episodes.csv:2: not an episode row"):
+    header = "env,planner,seed,is_success,collision,timeout\n"
+    (tmp_path / "episodes.csv").write_text(header + "SRPB-Crowd-v0,dwa,x,1,0,0\n")
+    with pytest.raises(InputError, match=r"episodes.csv:2: column seed is 'x'"):
         lm.summarise(str(tmp_path), 0.5, 0.2)
-    (tmp_path / "episodes.csv").write_text("env,planner,seed,robot,is_success\n"
-                                           "SRPB-Crowd-v0,dwa,5,,1\n")  # fmt: skip
+    (tmp_path / "episodes.csv").write_text(header + "SRPB-Crowd-v0,dwa,5,1,0,0\n")
     with pytest.raises(InputError, match="records are needed"):
         lm.summarise(str(tmp_path), 0.5, 0.2)
     with pytest.raises(SystemExit):
