@@ -331,3 +331,25 @@ def test_dagger_rounds_let_the_clone_drive_on_later_seeds(monkeypatch):
     expected, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
     np.testing.assert_allclose([drive(o) for o in obs], expected, atol=1e-6)
     venv.close()
+
+
+def test_a_reference_planner_teaches_with_the_true_people(monkeypatch):
+    """A privileged teacher: handed the true people (zero covariance, every person) while
+    it drives the demonstrations; the recorded observations stay the robot's own."""
+    from srpb_gym.planners.reference import OracleDWA
+
+    handed: list[tuple[int, float]] = []
+    act = OracleDWA.act
+
+    def spy(self, observation, knowledge):
+        tracks = knowledge.tracks
+        handed.append((len(tracks.ids), float(np.abs(tracks.covariance).sum())))
+        return act(self, observation, knowledge)
+
+    monkeypatch.setattr(OracleDWA, "act", spy)
+    short = {"reward": "task", "max_episode_steps": 60}
+    demos = collect("SRPB-Corridor-v0", short, "oracle-dwa", 1, noise=0.0)
+    plain = collect("SRPB-Corridor-v0", short, "dwa", 1, noise=0.0)
+    assert len(handed) == demos.actions.shape[0] == 60
+    assert all(n == 2 and cov == 0.0 for n, cov in handed)  # both walkers, exactly
+    np.testing.assert_array_equal(demos.obs[0], plain.obs[0])  # the same observation

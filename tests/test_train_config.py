@@ -85,7 +85,7 @@ def test_file_errors_name_file_line_and_key(tmp_path, text, expected):
         (
             ["pretrain_planner=astar"],
             "pretrain_planner: 'astar' is no planner (dwa, go-to-goal, "
-            "social-dwa, social-force), shipped model (",
+            "social-dwa, social-force, oracle-dwa, oracle-social-dwa), shipped model (",
         ),
         (["pretrain_teachers={crowd: astar}"], "pretrain_teachers.crowd: 'astar' is no planner"),
         (["pretrain_teachers=[dwa]"], "--hyperparams: pretrain_teachers: expected a mapping"),

@@ -24,7 +24,7 @@ from srpb_gym.config import from_dict, parse_overrides
 from srpb_gym.errors import InputError
 from srpb_gym.models.files import find_model
 from srpb_gym.models.shipped import model_names
-from srpb_gym.planners import PLANNERS
+from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS
 from srpb_gym.seeds import CHECKPOINT_SELECTION, DEMONSTRATIONS
 from srpb_gym.yaml_io import read_file, read_yaml
 
@@ -98,7 +98,8 @@ class TrainConfig:
 
     ``pretrain_planner``: the teacher whose ``pretrain_episodes`` demonstrations
     warm-start the policy before PPO (empty: none; :mod:`srpb_gym.training.pretrain`): a
-    classical planner (``dwa``, ``social-dwa``, ...), a shipped model's name or a model
+    classical planner (``dwa``, ``social-dwa``, ...), a reference planner handed the true
+    people (``oracle-social-dwa``, ...: a privileged teacher), a shipped model's name or a model
     file (or a run folder holding ``model.zip``); ``pretrain_epochs`` passes of behaviour
     cloning, executed actions with Gaussian noise ``pretrain_noise``, then the policy's
     log standard deviation set to ``pretrain_log_std``. ``pretrain_teachers``: for
@@ -234,9 +235,10 @@ def vecnormalize_kwargs(gamma: float) -> dict[str, Any]:
 
 def _check_teacher(name: str, teacher: str) -> None:
     """A teacher of the warm start: a planner's name, a shipped model or a model file."""
-    if teacher in PLANNERS or find_model(teacher) is not None:
+    if teacher in PLANNERS or teacher in REFERENCE_PLANNERS or find_model(teacher) is not None:
         return
-    raise ValueError(f"{name}: {teacher!r} is no planner ({', '.join(sorted(PLANNERS))}), "
+    planners = ", ".join(sorted(PLANNERS) + sorted(REFERENCE_PLANNERS))
+    raise ValueError(f"{name}: {teacher!r} is no planner ({planners}), "
                      f"shipped model ({', '.join(model_names()) or 'none'}), model file or "
                      "run folder holding model.zip")  # fmt: skip
 

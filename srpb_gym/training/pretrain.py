@@ -10,8 +10,10 @@ clone ``social-dwa``, whose route around the pair the ``srpb`` preset keeps and 
 ``task`` preset wears down towards the pair). :func:`pretrain` drives ``episodes``
 episodes with a teacher, on the demonstration seeds (from :data:`DEMO_SEED`:
 :data:`srpb_gym.seeds.DEMONSTRATIONS`, apart from training, checkpoint-selection,
-validation and test seeds): a planner of :mod:`srpb_gym.planners` or a trained
-model (:func:`make_teacher`), and for a mixture of scenarios a teacher per scenario, so
+validation and test seeds): a planner of :mod:`srpb_gym.planners` (a baseline or a
+reference planner, which is handed the true people while it teaches: a privileged
+teacher, the student still observes only what the robot senses) or a trained model
+(:func:`make_teacher`), and for a mixture of scenarios a teacher per scenario, so
 that specialists are distilled into one policy. Then it:
 
 1. sets the ``VecNormalize`` statistics (observations, discounted returns) from the
@@ -51,8 +53,8 @@ from srpb_gym.evaluation.policies import load_policy
 from srpb_gym.evaluation.spec import PlannerSpec
 from srpb_gym.models.files import resolve_model
 from srpb_gym.models.record import lidar_beams_of
-from srpb_gym.planners import PLANNERS, make_planner
-from srpb_gym.planners.base import Planner
+from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS, make_planner
+from srpb_gym.planners.base import Planner, knowledge_for
 from srpb_gym.seeds import DEMONSTRATIONS, check_not_test, check_within
 from srpb_gym.training.config import Pretraining
 
@@ -95,11 +97,13 @@ class Demonstrations:
 
 def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner",
                  trust_pickle: bool = False) -> Planner:  # fmt: skip
-    """The planner behind ``teacher``: a classical planner by its name, or a learned one
-    (a shipped model's name, a model file or a run folder holding ``model.zip``, with its
-    observation statistics; their pickles unpickled only with ``trust_pickle``), checked
-    to act on ``env``'s spaces. Failures are an :class:`InputError` naming ``key``."""
-    if teacher in PLANNERS:
+    """The planner behind ``teacher``: a classical or reference planner by its name
+    (:data:`~srpb_gym.planners.PLANNERS`, :data:`~srpb_gym.planners.REFERENCE_PLANNERS`),
+    or a learned one (a shipped model's name, a model file or a run folder holding
+    ``model.zip``, with its observation statistics; their pickles unpickled only with
+    ``trust_pickle``), checked to act on ``env``'s spaces. Failures are an
+    :class:`InputError` naming ``key``."""
+    if teacher in PLANNERS or teacher in REFERENCE_PLANNERS:
         return make_planner(teacher)
     try:
         path, vecnormalize = resolve_model(teacher, key)
@@ -161,10 +165,11 @@ def collect(env_id: str, env_kwargs: Mapping[str, Any], planner: str, episodes: 
             scenario = str(info.get("scenario", ""))
             agent = agents.get(scenario, fallback)
             assert agent is not None  # every scenario has a teacher (checked above)
-            agent.reset(base.knowledge())
+            agent.reset(knowledge_for(agent, base.knowledge))
             scenario_l.append(scenario)
             while True:
-                action = np.asarray(agent.act(obs, base.knowledge()), dtype=np.float32)
+                action = np.asarray(agent.act(obs, knowledge_for(agent, base.knowledge)),
+                                    dtype=np.float32)  # fmt: skip
                 base.set_planning_time(0.0)
                 executed = action if driver is None else np.asarray(driver(obs), np.float32)
                 if noise > 0:
