@@ -33,6 +33,7 @@ from srpb_gym.planners import (
     PLANNERS,
     REFERENCE_PLANNERS,
     check_settings,
+    is_planner,
     planner_config,
     unknown_planner,
 )
@@ -283,7 +284,7 @@ def _unique(items: Sequence[str]) -> list[str]:
 
 
 def _planner_spec(name: str, settings: Mapping[str, Any] | None = None) -> PlannerSpec:
-    if name not in PLANNERS and name not in REFERENCE_PLANNERS:
+    if not is_planner(name):
         raise InputError(unknown_planner(name), key="--planner")
     planner_config(name, settings)  # fail now on a bad setting, not in a worker
     return PlannerSpec(name=name, planner=name, config=dict(settings or {}))

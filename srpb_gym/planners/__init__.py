@@ -44,6 +44,11 @@ REFERENCE_PLANNERS: dict[str, type[Planner]] = {
 when named."""
 
 
+def is_planner(name: str) -> bool:
+    """Whether ``name`` is a registered planner: a baseline or a reference planner."""
+    return name in PLANNERS or name in REFERENCE_PLANNERS
+
+
 def planner_class(name: str) -> type[Planner]:
     """The class of the planner ``name``, a baseline or a reference planner; ``KeyError``
     naming the choices for an unknown name."""
@@ -84,7 +89,7 @@ def check_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
         raise InputError(f"expected a mapping of planner names to settings, got {settings!r}",
                          key="planner")  # fmt: skip
     for name in settings:
-        if name not in PLANNERS and name not in REFERENCE_PLANNERS:
+        if not is_planner(name):
             raise InputError(unknown_planner(name), key=f"planner.{name}")
     return dict(settings)
 
@@ -107,8 +112,9 @@ __all__ = ["DWA", "PERSON_RADIUS", "PLANNERS", "REFERENCE_PLANNERS", "DWAConfig"
            "GlobalPlanner", "GlobalPlannerConfig", "GoToGoal", "GoToGoalConfig", "Knowledge",
            "OracleDWA", "OracleSocialDWA", "OracleSocialDWAConfig", "Planner", "RecoveryConfig",
            "SocialDWA", "SocialDWAConfig", "SocialForcePlanner", "SocialForcePlannerConfig",
-           "check_settings", "command_to_action", "heading_error", "knowledge_for",
-           "make_planner", "planner_class", "planner_config", "unknown_planner"]  # fmt: skip
+           "check_settings", "command_to_action", "heading_error", "is_planner",
+           "knowledge_for", "make_planner", "planner_class", "planner_config",
+           "unknown_planner"]  # fmt: skip
 
 
 def __getattr__(name: str) -> Any:

@@ -24,7 +24,7 @@ from srpb_gym.config import from_dict, parse_overrides
 from srpb_gym.errors import InputError
 from srpb_gym.models.files import find_model
 from srpb_gym.models.shipped import model_names
-from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS
+from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS, is_planner
 from srpb_gym.seeds import CHECKPOINT_SELECTION, DEMONSTRATIONS
 from srpb_gym.yaml_io import read_file, read_yaml
 
@@ -235,7 +235,7 @@ def vecnormalize_kwargs(gamma: float) -> dict[str, Any]:
 
 def _check_teacher(name: str, teacher: str) -> None:
     """A teacher of the warm start: a planner's name, a shipped model or a model file."""
-    if teacher in PLANNERS or teacher in REFERENCE_PLANNERS or find_model(teacher) is not None:
+    if is_planner(teacher) or find_model(teacher) is not None:
         return
     planners = ", ".join(sorted(PLANNERS) + sorted(REFERENCE_PLANNERS))
     raise ValueError(f"{name}: {teacher!r} is no planner ({planners}), "

@@ -53,7 +53,7 @@ from srpb_gym.evaluation.policies import load_policy
 from srpb_gym.evaluation.spec import PlannerSpec
 from srpb_gym.models.files import resolve_model
 from srpb_gym.models.record import lidar_beams_of
-from srpb_gym.planners import PLANNERS, REFERENCE_PLANNERS, make_planner
+from srpb_gym.planners import is_planner, make_planner
 from srpb_gym.planners.base import Planner, knowledge_for
 from srpb_gym.seeds import DEMONSTRATIONS, check_not_test, check_within
 from srpb_gym.training.config import Pretraining
@@ -103,7 +103,7 @@ def make_teacher(teacher: str, env: gym.Env, key: str = "pretrain_planner",
     ``model.zip``, with its observation statistics; their pickles unpickled only with
     ``trust_pickle``), checked to act on ``env``'s spaces. Failures are an
     :class:`InputError` naming ``key``."""
-    if teacher in PLANNERS or teacher in REFERENCE_PLANNERS:
+    if is_planner(teacher):
         return make_planner(teacher)
     try:
         path, vecnormalize = resolve_model(teacher, key)
