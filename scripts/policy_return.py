@@ -52,6 +52,7 @@ def returns(policy: Planner, env_id: str, env_kwargs: Mapping[str, Any], episode
     totals = np.zeros(episodes)
     reached = np.zeros(episodes, dtype=bool)
     terms = {name: np.zeros(episodes) for name in TERMS}
+    keys = [(f"reward_{name}", sums) for name, sums in terms.items()]
     try:
         for k in range(episodes):
             obs, _ = env.reset(seed=seed + k)
@@ -60,8 +61,8 @@ def returns(policy: Planner, env_id: str, env_kwargs: Mapping[str, Any], episode
                 action = policy.act(obs, knowledge_for(policy, base.knowledge))
                 obs, reward, terminated, truncated, info = env.step(action)
                 totals[k] += reward
-                for name in TERMS:
-                    terms[name][k] += info[f"reward_{name}"]
+                for key, sums in keys:
+                    sums[k] += info[key]
                 if terminated or truncated:
                     reached[k] = bool(info.get("is_success", False))
                     break
