@@ -547,7 +547,7 @@ def test_the_card_reports_the_true_people_beside_the_tracked():
     from srpb_gym.evaluation.data import EpisodeResult
     from srpb_gym.sim.contact import Collision
     from srpb_gym.training.callbacks import EVAL_METRICS, summarize_results
-    from training.ship import _truth_table, with_truth
+    from training.ship import _truth_table, with_caused
 
     def row(psi, gt_psi, hit=""):
         metrics = dict.fromkeys(EVAL_METRICS, 1.0)
@@ -559,7 +559,7 @@ def test_the_card_reports_the_true_people_beside_the_tracked():
                              first_collision=first)  # fmt: skip
 
     rows = [row(10.0, 20.0), row(30.0, 40.0, "robot"), row(50.0, 60.0, "person"), row(0, 0)]
-    f = with_truth(summarize_results(rows), rows)["SRPB-Crowd-v0"]
+    f = with_caused(summarize_results(rows), rows)["SRPB-Crowd-v0"]
     assert (f["m_psi"], f["gt_m_psi"]) == (20.0, 30.0)  # medians of each
     assert math.isnan(f["gt_m_dir"]) and f["m_dir"] == 1.0
     assert f["collision"] == 0.5 and f["caused_collision"] == 0.25  # the person hit the other

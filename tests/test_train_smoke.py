@@ -532,6 +532,55 @@ def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monk
         assert [r["step"] for r in csv.DictReader(f)] == [str(s) for s in range(100, 700, 100)]
 
 
+def test_best_is_chosen_by_the_distance_kept_from_the_true_people(tmp_path, monkeypatch):
+    """At equal success, best/ is the checkpoint with the lower median m_psi from the true
+    people, where the tracked median says the opposite; the shipping script's best_step
+    reads the same column back (and m_psi in a file written before gt_m_psi was kept)."""
+    import os
+    from types import SimpleNamespace
+
+    from srpb_gym.training import callbacks
+    from training.ship import best_step
+
+    def save(model, path):
+        os.makedirs(path)
+        (tmp_path / path).joinpath("model.zip").write_text(path)
+
+    def run(config, log=None, progress=True):
+        os.makedirs(config.out)
+        return SimpleNamespace(results=None, interrupted=False)
+
+    # (success, tracked m_psi, ground-truth m_psi) of the evaluations at 100, 200, 300
+    figures = iter([(0.9, 10.0, 30.0), (0.9, 30.0, 10.0), (0.9, 5.0, 20.0)])
+
+    def summarize(results):
+        success, psi, gt_psi = next(figures)
+        row = {k: 0.0 for k in callbacks.EVAL_COLUMNS if k not in ("step", "env")}
+        return {"SRPB-Corridor-v0": {**row, "success": success, "m_psi": psi,
+                                     "gt_m_psi": gt_psi}}  # fmt: skip
+
+    monkeypatch.setattr(callbacks, "save_checkpoint", save)
+    monkeypatch.setattr(callbacks, "summarize_results", summarize)
+    monkeypatch.setattr("srpb_gym.evaluation.harness.run_evaluation", run)
+    monkeypatch.setattr("srpb_gym.evaluation.spec.resolve_config",
+                        lambda *args, **kwargs: SimpleNamespace(out=kwargs["out"]))  # fmt: skip
+    cb = callbacks.PeriodicEvalCallback(str(tmp_path), ["SRPB-Corridor-v0"], 100, 1)
+    cb.model = SimpleNamespace(logger=SimpleNamespace(record=lambda *args: None))
+    for step in (100, 200, 300):
+        cb.num_timesteps = step
+        cb.evaluate()
+    assert (tmp_path / "best" / "model.zip").read_text().endswith("step_000000200")
+    assert best_step(tmp_path) == 200
+    with open(tmp_path / "evaluations.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert [r["gt_m_psi"] for r in rows] == ["30", "10", "20"]
+    with open(tmp_path / "evaluations.csv", "w", newline="") as f:  # as written before
+        old = csv.DictWriter(f, fieldnames=["step", "env", "success", "m_psi"])
+        old.writeheader()
+        old.writerows({k: r[k] for k in old.fieldnames} for r in rows)
+    assert best_step(tmp_path) == 300  # then best/ was chosen by the tracked median
+
+
 def test_the_printed_eval_command_keeps_what_the_spaces_need(tmp_path):
     """The mixture is evaluated on its scenarios, a scenario file as a file; the env
     kwargs that evaluation needs are kept (and read back the same), training's own are

@@ -5,8 +5,8 @@
 Takes the run's best checkpoint (``best/``, the best periodic evaluation; ``--final`` takes
 the final model; ``--validate N`` tests both on N validation seeds from
 ``--validation-seed``, none of which chose best/, and takes the better by the periodic
-evaluations' rule, with the median ``m_psi`` from the true people in place of the
-tracked one: :data:`CHOOSE_BY`; a test seed there is refused), evaluates it once with the
+evaluations' rule: success, then the median ``m_psi`` from the true people,
+``callbacks.CHOOSE_BY``; a test seed there is refused), evaluates it once with the
 ``srpb-gym eval`` harness on ``--episodes`` test seeds from ``--seed`` (200 from
 20,000,000 by default: :data:`srpb_gym.seeds.TEST`; each scenario of the mixture for a
 model trained on SRPB-Mix-v0; the environments made with the run's env kwargs but those
@@ -34,7 +34,6 @@ import math
 import os
 import re
 import shutil
-import statistics
 import sys
 import zipfile
 from pathlib import Path
@@ -56,7 +55,7 @@ from srpb_gym.observation import ObservationConfig
 from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.reward_terms import preset_names
 from srpb_gym.seeds import CHECKPOINT_SELECTION, TEST, VALIDATION, check_not_test, range_of
-from srpb_gym.training.callbacks import EVAL_METRICS, eval_score, summarize_results
+from srpb_gym.training.callbacks import CHOOSE_BY, eval_score, summarize_results
 from srpb_gym.training.checks import reward_weights
 from srpb_gym.training.targets import eval_command, eval_setup
 
@@ -67,9 +66,6 @@ TEST_SEED, TEST_EPISODES = TEST.start, 200
 #: evaluations' seeds, which chose best/, the demonstrations of a warm start and the test
 #: seeds
 VALIDATION_SEED = VALIDATION.start
-#: the figure of the validation that decides between best/ and the final model at equal
-#: success: the median m_psi from the true people
-CHOOSE_BY = "gt_m_psi"
 #: the warm-up of the test evaluation (none), which the card's command repeats
 TEST_WARMUP = 0
 #: the scenarios a shipped model's name may name: the packaged ones and the mixture
@@ -102,18 +98,15 @@ def evaluate(model: Path, env_ids: list[str], episodes: int, seed: int, out: Pat
                             out=str(out), warmup=TEST_WARMUP, workers=workers, log=None,
                             env_kwargs=env_kwargs, trust_pickle=trust_pickle)  # fmt: skip
     outcome = run_evaluation(config, log=lambda line: None)
-    return with_truth(summarize_results(outcome.results), outcome.results)
+    return with_caused(summarize_results(outcome.results), outcome.results)
 
 
-def with_truth(summary: dict[str, dict[str, float]], results: list[Any]) -> dict:
-    """``summary`` (:func:`summarize_results`, by env id) with, for each env, the medians
-    of the metrics from the true people (``gt_<metric>``) and the rate of collisions the
+def with_caused(summary: dict[str, dict[str, float]], results: list[Any]) -> dict:
+    """``summary`` (:func:`summarize_results`, by env id: the medians of the metrics from
+    the tracked and from the true people) with, for each env, the rate of collisions the
     robot caused (``caused_collision``: its first collision attributed to it)."""
     for env_id, figures in summary.items():
         rows = [r for r in results if r.env == env_id]
-        for m in EVAL_METRICS:
-            values = [v for v in (r.truth(m) for r in rows) if math.isfinite(v)]
-            figures["gt_" + m] = float(statistics.median(values)) if values else math.nan
         caused = [r.first_collision is not None and r.first_collision.by == "robot"
                   for r in rows]  # fmt: skip
         figures["caused_collision"] = sum(caused) / len(rows) if rows else math.nan
@@ -357,18 +350,22 @@ def _start(training: dict[str, Any]) -> str:
 
 def best_step(run: Path) -> int | None:
     """The step of the best periodic evaluation, by the rule that chose ``best/`` (highest
-    mean success over the evaluated environments, then lowest mean median m_psi)."""
+    mean success over the evaluated environments, then lowest mean median m_psi: from the
+    true people, or from the tracked ones in a run written before ``evaluations.csv``
+    kept the ground truth)."""
     path = run / "evaluations.csv"
     if not path.is_file():
         return None
     rows: dict[int, list[dict[str, str]]] = {}
     with open(path, newline="", encoding="utf-8") as f:
-        for row in csv.DictReader(f):
+        reader = csv.DictReader(f)
+        psi = CHOOSE_BY if CHOOSE_BY in (reader.fieldnames or ()) else "m_psi"
+        for row in reader:
             rows.setdefault(int(row["step"]), []).append(row)
 
     def score(step: int) -> tuple[float, float]:
-        return eval_score({"success": float(r["success"]),
-                           "m_psi": float(r["m_psi"] or "nan")} for r in rows[step])  # fmt: skip
+        return eval_score(({"success": float(r["success"]), psi: float(r[psi] or "nan")}
+                           for r in rows[step]), psi)  # fmt: skip
 
     best: int | None = None
     for step in sorted(rows):  # the first of equal scores, as during training
@@ -406,8 +403,7 @@ def choose(run: Path, env_ids: list[str], episodes: int, env_kwargs: dict[str, A
            ) -> tuple[Path, dict[str, Any]]:  # fmt: skip
     """``best/`` or the final model of ``run``, whichever scores higher
     (:func:`~srpb_gym.training.callbacks.eval_score`: mean success, then the mean of the
-    median m_psi from the true people: the periodic evaluations that chose best/ read the
-    tracked one, and a policy's distance from people is what it keeps in ground truth)
+    median m_psi from the true people, as the periodic evaluations chose best/)
     on ``episodes`` seeds from ``seed`` (default :data:`VALIDATION_SEED`; a test seed is an
     :class:`~srpb_gym.errors.InputError` naming ``--validation-seed``); ``best/`` on a tie
     (and without a second evaluation when ``best/`` is the final model). Returns the chosen

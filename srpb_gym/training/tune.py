@@ -5,13 +5,15 @@ Every trial is one ordinary run (:func:`srpb_gym.training.run.train`) into a run
 its own, ``<out>/<trial>`` (``seed0``, or ``learning_rate=0.001-seed0`` in a grid), with
 exactly the files a single ``srpb-gym train`` writes. Its periodic evaluations (on the
 checkpoint-selection seeds; they choose the run's ``best/``) are reported to Tune as they
-happen (``eval/success``, ``eval/m_psi``, ... : the mean over the evaluated environments).
+happen (``eval/success``, ``eval/m_psi``, ``eval/gt_m_psi``, ... : the mean over the
+evaluated environments; ``gt_``: from the true people).
 When a trial has trained, its best checkpoint (``best/``, else the final model) is
 evaluated on the **validation** seeds (:data:`~srpb_gym.seeds.VALIDATION`, from its
 start; ``--validation-episodes`` per environment) into ``<out>/validation/<trial>``, and
-that is the trial's last report (``validation/success``, ``validation/m_psi``, ...). The
-best trial is chosen on those figures alone (the highest success rate, then the lowest
-median ``m_psi``, as ``best/`` is chosen within a run); the test seeds are never used.
+that is the trial's last report (``validation/success``, ``validation/gt_m_psi``, ...).
+The best trial is chosen on those figures alone (the highest success rate, then the
+lowest median ``m_psi`` from the true people, as ``best/`` is chosen within a run); the
+test seeds are never used.
 ``<out>/trials.csv`` lists every trial and its validation figures, ``<out>/best.json``
 names the best; Tune's own records are in ``<out>/tune/``.
 
@@ -39,12 +41,12 @@ from srpb_gym.evaluation.outdir import check_out_dir
 from srpb_gym.evaluation.ray_pool import connect
 from srpb_gym.models.shipped import MODEL_FILE
 from srpb_gym.seeds import TRAINING, VALIDATION, check_not_test, check_within
-from srpb_gym.training.callbacks import eval_score, summarize_results
+from srpb_gym.training.callbacks import CHOOSE_BY, eval_score, summarize_results
 from srpb_gym.training.config import DEFAULT_VALIDATION_EPISODES, resolve
 from srpb_gym.training.run import train
 from srpb_gym.training.targets import eval_setup
 
-FIGURES = ("success", "collision", "timeout", "m_psi")
+FIGURES = ("success", "collision", "timeout", "m_psi", CHOOSE_BY)
 
 
 @dataclass(frozen=True)
@@ -182,7 +184,7 @@ def validate(run_dir: str, env_id: str, env_kwargs: Mapping[str, Any], episodes:
 
 
 def flat(prefix: str, figures: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
-    """``prefix/<figure>``: each figure's mean over the environments (``m_psi``: as
+    """``prefix/<figure>``: each figure's mean over the environments (``gt_m_psi``: as
     :func:`~srpb_gym.training.callbacks.eval_score` takes it), and ``prefix/<env>/<figure>``
     for each environment when there are several."""
     out: dict[str, float] = {}
@@ -190,7 +192,7 @@ def flat(prefix: str, figures: Mapping[str, Mapping[str, float]]) -> dict[str, f
     for key in FIGURES:
         values = [f[key] for f in figures.values() if math.isfinite(f.get(key, math.nan))]
         out[f"{prefix}/{key}"] = sum(values) / len(values) if values else math.nan
-    out[f"{prefix}/success"], out[f"{prefix}/m_psi"] = success, -neg_psi
+    out[f"{prefix}/success"], out[f"{prefix}/{CHOOSE_BY}"] = success, -neg_psi
     if len(figures) > 1:
         for env, fig in figures.items():
             out |= {f"{prefix}/{env}/{k}": float(fig[k]) for k in FIGURES if k in fig}
@@ -211,14 +213,15 @@ def _summarise(out: str, trials: list[dict[str, Any]], grid_result: Any,
                "run": os.path.join(out, trial["name"]),
                "validation_success": metrics.get("validation/success", math.nan),
                "validation_m_psi": metrics.get("validation/m_psi", math.nan),
+               "validation_gt_m_psi": metrics.get(f"validation/{CHOOSE_BY}", math.nan),
                "error": "" if result is None or result.error is None
                else str(result.error).strip().splitlines()[-1][:200]}  # fmt: skip
         outcome.trials.append(row)
     done = [r for r in outcome.trials if not r["error"] and math.isfinite(r["validation_success"])]
     if done:
         best = max(done, key=lambda r: (r["validation_success"],
-                                        -r["validation_m_psi"] if math.isfinite(
-                                            r["validation_m_psi"]) else -math.inf))  # fmt: skip
+                                        -r["validation_gt_m_psi"] if math.isfinite(
+                                            r["validation_gt_m_psi"]) else -math.inf))  # fmt: skip
         outcome.best = best["trial"]
     keys = list(dict.fromkeys(k for r in outcome.trials for k in r))
     with open(os.path.join(out, "trials.csv"), "w", newline="", encoding="utf-8") as f:
@@ -228,12 +231,14 @@ def _summarise(out: str, trials: list[dict[str, Any]], grid_result: Any,
     with open(os.path.join(out, "best.json"), "w", encoding="utf-8") as f:
         best_row = next((r for r in outcome.trials if r["trial"] == outcome.best), None)
         json.dump({"chosen_on": f"{VALIDATION.text()}, from {VALIDATION.start}",
-                   "rule": "highest validation success rate, then lowest median m_psi",
+                   "rule": "highest validation success rate, then lowest median m_psi "
+                           "from the true people",
                    "best": best_row, "created": time.strftime("%Y-%m-%dT%H:%M:%S%z")},
                   f, indent=1, default=str)  # fmt: skip
         f.write("\n")
     for r in outcome.trials:
         state = r["error"] or (f"validation success {100 * r['validation_success']:.0f} %, "
-                               f"m_psi {r['validation_m_psi']:.3g} %")  # fmt: skip
+                               f"m_psi {r['validation_gt_m_psi']:.3g} % (ground truth), "
+                               f"{r['validation_m_psi']:.3g} % (tracked)")  # fmt: skip
         log(f"{r['trial']}: {state}{' (best)' if r['trial'] == outcome.best else ''}")
     return outcome
