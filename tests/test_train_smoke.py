@@ -485,9 +485,10 @@ def test_periodic_evaluation_uses_the_env_kwargs(tmp_path, capsys):
         assert first[key] == second[key], key
 
 
-def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monkeypatch):
-    """Each periodic evaluation writes a full evaluation folder (75 MB for the mixture):
-    the folders of the latest and of the best evaluation are kept, as the checkpoints."""
+def _stub_evaluations(tmp_path, monkeypatch, figures):
+    """A periodic evaluation callback into ``tmp_path`` whose evaluations run nothing: each
+    saves a checkpoint whose model.zip holds its own path and scores the next of
+    ``figures``, (success, tracked median m_psi, ground-truth median m_psi)."""
     import os
     from types import SimpleNamespace
 
@@ -495,17 +496,19 @@ def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monk
 
     def save(model, path):
         os.makedirs(path)
-        (tmp_path / path).joinpath("model.zip").write_bytes(b"")
+        (tmp_path / path).joinpath("model.zip").write_text(path)
 
     def run(config, log=None, progress=True):
         os.makedirs(config.out)
         return SimpleNamespace(results=None, interrupted=False)
 
-    successes = iter([0.5, 0.9, 0.7, 0.6, 1.0, 0.8])
+    figures = iter(figures)
 
     def summarize(results):
-        figures = {k: 0.0 for k in callbacks.EVAL_COLUMNS if k not in ("step", "env")}
-        return {"SRPB-Corridor-v0": {**figures, "success": next(successes), "m_psi": 10.0}}
+        success, psi, gt_psi = next(figures)
+        row = {k: 0.0 for k in callbacks.EVAL_COLUMNS if k not in ("step", "env")}
+        return {"SRPB-Corridor-v0": {**row, "success": success, "m_psi": psi,
+                                     "gt_m_psi": gt_psi}}  # fmt: skip
 
     monkeypatch.setattr(callbacks, "save_checkpoint", save)
     monkeypatch.setattr(callbacks, "summarize_results", summarize)
@@ -514,6 +517,14 @@ def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monk
                         lambda *args, **kwargs: SimpleNamespace(out=kwargs["out"]))  # fmt: skip
     cb = callbacks.PeriodicEvalCallback(str(tmp_path), ["SRPB-Corridor-v0"], 100, 1)
     cb.model = SimpleNamespace(logger=SimpleNamespace(record=lambda *args: None))
+    return cb
+
+
+def test_only_the_latest_and_the_best_evaluation_folders_are_kept(tmp_path, monkeypatch):
+    """Each periodic evaluation writes a full evaluation folder (75 MB for the mixture):
+    the folders of the latest and of the best evaluation are kept, as the checkpoints."""
+    successes = [0.5, 0.9, 0.7, 0.6, 1.0, 0.8]
+    cb = _stub_evaluations(tmp_path, monkeypatch, [(s, 10.0, 10.0) for s in successes])
     kept = []
     for step in range(100, 700, 100):
         cb.num_timesteps = step
@@ -536,36 +547,11 @@ def test_best_is_chosen_by_the_distance_kept_from_the_true_people(tmp_path, monk
     """At equal success, best/ is the checkpoint with the lower median m_psi from the true
     people, where the tracked median says the opposite; the shipping script's best_step
     reads the same column back (and m_psi in a file written before gt_m_psi was kept)."""
-    import os
-    from types import SimpleNamespace
-
-    from srpb_gym.training import callbacks
     from training.ship import best_step
 
-    def save(model, path):
-        os.makedirs(path)
-        (tmp_path / path).joinpath("model.zip").write_text(path)
-
-    def run(config, log=None, progress=True):
-        os.makedirs(config.out)
-        return SimpleNamespace(results=None, interrupted=False)
-
     # (success, tracked m_psi, ground-truth m_psi) of the evaluations at 100, 200, 300
-    figures = iter([(0.9, 10.0, 30.0), (0.9, 30.0, 10.0), (0.9, 5.0, 20.0)])
-
-    def summarize(results):
-        success, psi, gt_psi = next(figures)
-        row = {k: 0.0 for k in callbacks.EVAL_COLUMNS if k not in ("step", "env")}
-        return {"SRPB-Corridor-v0": {**row, "success": success, "m_psi": psi,
-                                     "gt_m_psi": gt_psi}}  # fmt: skip
-
-    monkeypatch.setattr(callbacks, "save_checkpoint", save)
-    monkeypatch.setattr(callbacks, "summarize_results", summarize)
-    monkeypatch.setattr("srpb_gym.evaluation.harness.run_evaluation", run)
-    monkeypatch.setattr("srpb_gym.evaluation.spec.resolve_config",
-                        lambda *args, **kwargs: SimpleNamespace(out=kwargs["out"]))  # fmt: skip
-    cb = callbacks.PeriodicEvalCallback(str(tmp_path), ["SRPB-Corridor-v0"], 100, 1)
-    cb.model = SimpleNamespace(logger=SimpleNamespace(record=lambda *args: None))
+    figures = [(0.9, 10.0, 30.0), (0.9, 30.0, 10.0), (0.9, 5.0, 20.0)]
+    cb = _stub_evaluations(tmp_path, monkeypatch, figures)
     for step in (100, 200, 300):
         cb.num_timesteps = step
         cb.evaluate()
