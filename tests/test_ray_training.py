@@ -62,10 +62,12 @@ def test_seeds_as_tune_trials_each_a_run_folder_best_on_validation_seeds(
         lines = (out / "tune" / "trials" / name / "result.json").read_text().splitlines()
         reported = [json.loads(line) for line in lines]  # what the trial reported to Tune
         assert "eval/success" in reported[0] and "validation/success" in reported[-1]
+        assert "eval/gt_m_psi" in reported[0] and "validation/gt_m_psi" in reported[-1]
     with open(out / "trials.csv", newline="") as f:
         trials = list(csv.DictReader(f))
     assert [t["trial"] for t in trials] == ["seed0", "seed1"]
     assert all(t["error"] == "" for t in trials)
+    assert all(float(t["validation_gt_m_psi"]) >= 0.0 for t in trials)  # the choice's figure
     best = json.loads((out / "best.json").read_text())
     assert best["best"]["trial"] in ("seed0", "seed1") and "validation" in best["chosen_on"]
     assert "best trial on the validation seeds" in capsys.readouterr().out
