@@ -81,6 +81,27 @@ def test_train_then_evaluate(tmp_path, capsys):
         ("0", "0"), ("0", "1"), ("1", "0"), ("1", "1")]  # fmt: skip
 
 
+def test_kept_checkpoints_are_each_a_policy_to_evaluate(tmp_path):
+    """With --keep-checkpoints every model --save-every writes stays, in its own folder,
+    with the statistics it observed with; the last is the final model."""
+    from training import multi_robot
+
+    out = tmp_path / "ppo"
+    assert multi_robot.main(["--scenario", "corridor", "--robots", "2", "--envs", "1",
+                             "--steps", "64", "--hyperparams", "n_steps=256", "batch_size=64",
+                             "--save-every", "256", "--keep-checkpoints", "--out",
+                             str(out)]) == 0  # fmt: skip
+    kept = sorted(p.name for p in (out / "checkpoints").iterdir())
+    assert kept == ["step_000000256", "step_000000512"]  # one rollout of 2 slots x 256
+    for name in kept:
+        assert {p.name for p in (out / "checkpoints" / name).iterdir()} == {
+            "model.zip", "vecnormalize.npz"}  # fmt: skip
+    last = out / "checkpoints" / kept[-1]
+    assert (last / "vecnormalize.npz").read_bytes() == (out / "vecnormalize.npz").read_bytes()
+    first = out / "checkpoints" / kept[0]
+    assert (first / "model.zip").read_bytes() != (last / "model.zip").read_bytes()
+
+
 @pytest.mark.parametrize(("argv", "message"), [
     (["--steps", "-5"], "--steps: must be at least 1, got -5"),
     (["--envs", "0"], "--envs: must be at least 1, got 0"),
@@ -93,6 +114,7 @@ def test_train_then_evaluate(tmp_path, capsys):
     (["--env-kwargs", "n_robots=2"], "--env-kwargs: n_robots is set by --robots"),
     (["--env-kwargs", "reward_people=nobody"], "--env-kwargs: "),
     (["--save-every", "-1"], "--save-every: must be at least 0, got -1"),
+    (["--keep-checkpoints"], "--keep-checkpoints: needs --save-every N"),
     (["--init", "no-such-model"], "--init: "),
     # a model that observed otherwise: refused after the folder was made, which goes again
     (["--scenario", "corridor", "--robots", "2", "--init", "ppo-crowd-srpb"],

@@ -17,7 +17,10 @@ environment's arguments (``observation``, ``reward_weights``, ``reward_people``,
 for ``srpb-gym train``. ``--init MODEL`` starts from a trained model (a single-robot one
 too: the robots observe as one robot does), its weights and normalisation statistics,
 which must have observed with the run's observation settings. ``--save-every N`` writes
-the model and its statistics every N robot-steps, so that a stopped run leaves one.
+the model and its statistics every N robot-steps, so that a stopped run leaves one;
+with ``--keep-checkpoints`` each of those is also kept, in ``checkpoints/step_<N>/``
+(``model.zip`` and ``vecnormalize.npz``: ``srpb-gym eval --policy`` takes the folder), to
+choose one on the checkpoint-selection seeds instead of taking the last.
 
 Run it from the repository's root: the ``training/`` scripts are not installed with the
 package. ``--out`` must be a new or empty folder; every argument is checked before it is
@@ -104,6 +107,7 @@ def train(
     reward: str = "task", hyperparams: Mapping[str, Any] | None = None,
     env_kwargs: Mapping[str, Any] | None = None, init: str | None = None,
     save_every: int = 0, log: Any = print, new_observation: bool = False,
+    keep_checkpoints: bool = False,
 ) -> Path:  # fmt: skip
     """Train PPO shared by every robot; writes ``model.zip``, ``vecnormalize.npz`` (where
     ``srpb-gym eval --policy`` looks) and ``run.json`` (``steps``: the steps the model
@@ -111,7 +115,8 @@ def train(
     or empty (a folder holding anything is refused, as by ``srpb-gym train``); returns
     ``out``. Every argument is checked, and ``init`` read, before the folder is made; a
     failure after leaves the folder as it was. ``new_observation``: start from ``init``
-    although it observed with other settings of the same shape."""
+    although it observed with other settings of the same shape. ``keep_checkpoints``: keep
+    each model saved every ``save_every`` robot-steps in ``checkpoints/step_<N>/``."""
     from srpb_gym.training.run import discard_run, load_init, read_init  # deferred: torch
 
     config = check_arguments(scenario, robots, envs, steps, seed, reward, hyperparams,
@@ -132,7 +137,9 @@ def train(
         discard_run(out, existed)
         raise
     started = time.perf_counter()
-    model.learn(total_timesteps=steps, callback=progress_callback(folder, save_every, log))
+    model.learn(
+        total_timesteps=steps, callback=progress_callback(folder, save_every, log, keep_checkpoints)
+    )
     _save(model, folder)
     record = {"scenario": scenario, "robots": robots, "envs": envs,
               "steps": int(model.num_timesteps), "steps_asked": steps, "seed": seed,
@@ -167,10 +174,11 @@ def _save(model: Any, folder: Path) -> None:
     save_vecnormalize(model.get_env(), folder / "vecnormalize.npz")
 
 
-def progress_callback(folder: Path, save_every: int, log: Any) -> Any:
+def progress_callback(folder: Path, save_every: int, log: Any, keep: bool = False) -> Any:
     """An SB3 callback that counts the robots that left by their own end (goal or
     collision, not cut short) and, every ``save_every`` robot-steps (0: never), logs their
-    success and collision rates and saves the model and its statistics into ``folder``."""
+    success and collision rates and saves the model and its statistics into ``folder``
+    (with ``keep``, also into ``folder/checkpoints/step_<N>``)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class Progress(BaseCallback):
@@ -194,6 +202,10 @@ def progress_callback(folder: Path, save_every: int, log: Any) -> Any:
                     "collided")  # fmt: skip
                 self.counts = [0, 0, 0]
                 _save(self.model, folder)
+                if keep:
+                    checkpoint = folder / "checkpoints" / f"step_{self.num_timesteps:09d}"
+                    checkpoint.mkdir(parents=True, exist_ok=True)
+                    _save(self.model, checkpoint)
             return True
 
     return Progress()
@@ -223,17 +235,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--save-every", type=int, default=0, metavar="N",
                     help="log progress and save the model every N robot-steps (0: at the "
                     "end only)")  # fmt: skip
+    ap.add_argument("--keep-checkpoints", action="store_true",
+                    help="keep each model --save-every writes, in "
+                    "checkpoints/step_<N>/")  # fmt: skip
     ap.add_argument("--out", default="runs/ppo-multi",
                     help="run folder, new or empty (default: runs/ppo-multi)")  # fmt: skip
     args = ap.parse_args(argv)
     try:
         if args.save_every < 0:
             raise InputError(f"must be at least 0, got {args.save_every}", key="--save-every")
+        if args.keep_checkpoints and not args.save_every:
+            raise InputError("needs --save-every N: the robot-steps between checkpoints",
+                             key="--keep-checkpoints")  # fmt: skip
         folder = train(args.scenario, args.robots, args.envs, args.steps, args.out, args.seed,
                        args.reward, parse_overrides(args.hyperparams),
                        parse_overrides(args.env_kwargs, "--env-kwargs"), args.init,
                        args.save_every, log=lambda line: print(line, flush=True),
-                       new_observation=args.init_new_observation)  # fmt: skip
+                       new_observation=args.init_new_observation,
+                       keep_checkpoints=args.keep_checkpoints)  # fmt: skip
     except InputError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
