@@ -13,7 +13,8 @@ shaping pays for a behaviour its learner did not find: the shortfall lies in the
 optimisation, not in what the reward asks for.
 
 Each ``--policy`` (a run folder's final ``model.zip``, a model file or a shipped model's
-name, with its observation statistics) drives ``--episodes`` episodes (seeds from
+name, with its observation statistics, checked to act on the environment's spaces; or a
+planner's name) drives ``--episodes`` episodes (seeds from
 ``--seed``) with deterministic actions in ``gym.make(--env, **--env-kwargs)``; the environment
 pays the reward (``reward``, ``reward_weights`` and ``reward_people`` among the
 ``--env-kwargs``; the default is what ``gym.make`` pays). Per policy: the mean return
@@ -25,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -36,11 +36,9 @@ import numpy as np
 import srpb_gym  # noqa: F401  (registers the environments)
 from srpb_gym.config import parse_overrides
 from srpb_gym.errors import InputError
-from srpb_gym.evaluation.policies import load_policy
-from srpb_gym.evaluation.spec import PlannerSpec
-from srpb_gym.models.files import resolve_model
 from srpb_gym.planners.base import Planner, knowledge_for
 from srpb_gym.reward import TERMS
+from srpb_gym.training.pretrain import make_teacher
 
 
 def returns(policy: Planner, env_id: str, env_kwargs: Mapping[str, Any], episodes: int,
@@ -71,13 +69,6 @@ def returns(policy: Planner, env_id: str, env_kwargs: Mapping[str, Any], episode
     return totals, reached, terms
 
 
-def load(name: str) -> Planner:
-    """The learned policy of a run folder, model file or shipped model's name."""
-    path, vecnormalize = resolve_model(name, "--policy")
-    return load_policy(PlannerSpec(name=os.path.basename(os.path.normpath(name)), policy=path,
-                                   vecnormalize=vecnormalize))  # fmt: skip
-
-
 def line(name: str, totals: np.ndarray, reached: np.ndarray,
          terms: Mapping[str, np.ndarray]) -> str:  # fmt: skip
     """One policy's summary: mean return +- standard error, success, the non-zero terms."""
@@ -92,7 +83,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--env", required=True, help="environment id")
     parser.add_argument("--policy", nargs="+", required=True,
-                        help="run folders, model files or shipped models' names")  # fmt: skip
+                        help="run folders, model files, shipped models' or planners' "
+                        "names")  # fmt: skip
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--seed", type=int, default=3_000_000)
     parser.add_argument("--env-kwargs", nargs="+", default=[], metavar="KEY=VALUE",
@@ -103,8 +95,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.episodes < 1:
             raise InputError(f"must be >= 1, got {args.episodes}", key="--episodes")
         env_kwargs = parse_overrides(args.env_kwargs, "--env-kwargs")
-        for name in args.policy:
-            print(line(name, *returns(load(name), args.env, env_kwargs, args.episodes,
+        probe = gym.make(args.env, **env_kwargs)
+        try:  # each policy loaded and checked to act on the environment's spaces
+            policies = [make_teacher(name, probe, key="--policy") for name in args.policy]
+        finally:
+            probe.close()
+        for name, policy in zip(args.policy, policies):
+            print(line(name, *returns(policy, args.env, env_kwargs, args.episodes,
                                       args.seed)), flush=True)  # fmt: skip
     except InputError as exc:
         print(f"policy_return: {exc}", file=sys.stderr)
