@@ -31,8 +31,10 @@ from a robot only at close range); the runs are evaluated in that environment wh
 they were trained in.
 
 With ``--robots N`` the runs are ``python -m training.multi_robot`` runs (or a shipped
-policy for several robots), each policy drives all N robots of an episode, and the runs'
-final models are compared (the multi-robot runs keep no ``best/``). The rates of the runs
+policy for several robots), each policy drives all N robots of an episode, and in place
+of ``best/`` each run's checkpoint chosen by ``python -m training.select_checkpoint``
+is compared (its ``selection.json``; the final model of a run without one, or with
+``--checkpoint final``). The rates of the runs
 are over every robot's episode (with ``hit a robot``: first collisions with another robot,
 and the success of each robot); the pairs and the pooled effects are over episodes, each
 episode's values the mean over its robots (the robots of one episode share it, so their
@@ -65,6 +67,7 @@ from srpb_gym.evaluation.stats import PUSHED_BACK, pushed_back_rate
 from srpb_gym.models import model_path
 from srpb_gym.registration import ENV_IDS
 from srpb_gym.seeds import TEST
+from srpb_gym.training.run_folder import chosen_model, read_selection
 
 METRICS = ("m_psi", "m_fsi", "m_dir")
 #: the settings of a shipped model's card that its run's config.yaml has, and its checkpoint
@@ -114,7 +117,12 @@ def checkpoint_of(run: Path, checkpoint: str) -> tuple[str, str | None]:
     model's checkpoint is not ``checkpoint``."""
     shipped = shipped_folder(run)
     if shipped is None and (run / "run.json").is_file() and not (run / "best").exists():
-        note = f"{run}: a multi-robot run, its final model" if checkpoint == "best" else None
+        selection = read_selection(run) if checkpoint == "best" else None
+        if selection is not None:  # the multi-robot run's choice stands for best/
+            return str(chosen_model(run, selection)), None
+        note = None
+        if checkpoint == "best":
+            note = f"{run}: a multi-robot run with no selection.json, its final model"
         return str(run / "model.zip"), note
     if shipped is None:
         return str(run / "best") if checkpoint == "best" else str(run / "model.zip"), None

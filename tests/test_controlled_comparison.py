@@ -145,10 +145,18 @@ def test_a_multi_robot_run_and_a_shipped_policy_for_several_robots(tmp_path):
     config = cc.run_config(run)
     assert config["env"] == "SRPB-Crowd-v0" and config["robots"] == 3
     assert "envs" not in config  # the comparison reads only what it pairs and prints
-    # a multi-robot run keeps its final model only
+    # a multi-robot run without a selection: its final model
     assert cc.checkpoint_of(run, "final") == (str(run / "model.zip"), None)
     model, note = cc.checkpoint_of(run, "best")
-    assert model == str(run / "model.zip") and "its final model" in note
+    assert model == str(run / "model.zip") and "no selection.json, its final model" in note
+    # with one, the checkpoint it chose stands for best/
+    chosen = run / "checkpoints" / "step_000000400"
+    chosen.mkdir(parents=True)
+    (chosen / "model.zip").write_bytes(b"")
+    (run / "selection.json").write_text(json.dumps({"chosen": chosen.name}))
+    assert cc.checkpoint_of(run, "best") == (str(chosen), None)
+    assert cc.checkpoint_of(run, "final") == (str(run / "model.zip"), None)
+    (run / "selection.json").unlink()
     notes = cc.check_pairs([run], [Path(name)])
     assert "differ in" in notes[0] and "reward" in notes[0]
     info["robots"] = 2

@@ -115,7 +115,7 @@ def test_ship_packages_a_run_whose_card_command_reproduces_it(tmp_path, monkeypa
 
 def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
     name = "ppo-crowd-srpb-3robots"
-    routes, train, ship = commands(name, [4], 1, root="runs/x")
+    routes, train, select, ship = commands(name, [4], 1, root="runs/x")
     assert routes[1:4] == ["-m", "srpb_gym", "train"] and ship[1:3] == [
         "-m",
         "training.ship_multi",
@@ -125,7 +125,11 @@ def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
     assert routes[routes.index("--init") + 1] == "ppo-crowd-srpb" and "route=random" in routes
     first = routes[routes.index("--out") + 1]
     assert train[train.index("--init") + 1] == f"{first}/best" and "--seed" in train
-    assert ship[ship.index("training.ship_multi") + 1] == train[train.index("--out") + 1]
+    # every checkpoint kept, one chosen on checkpoint-selection seeds, that one shipped
+    run = train[train.index("--out") + 1]
+    assert "--keep-checkpoints" in train and train[train.index("--save-every") + 1] == "200000"
+    assert select[1:4] == ["-m", "training.select_checkpoint", run] and "--seed" not in select
+    assert ship[ship.index("training.ship_multi") + 1] == run
     crowd = commands("ppo-crowd-srpb", [4], 1, ship=False)[0]
     kwargs = crowd[crowd.index("--env-kwargs") + 1 : crowd.index("--hyperparams")]
     assert train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")] == kwargs
@@ -191,8 +195,9 @@ def test_the_card_names_the_run_its_initial_model_comes_from(tmp_path):
 def test_the_task_twin_of_the_shared_policy_differs_in_its_reward_and_start_only():
     srpb = commands("ppo-crowd-srpb-3robots", [1], 1, ship=False)
     task = commands("ppo-crowd-task-3robots", [1], 1, ship=False)
-    assert len(srpb) == len(task) == 2
-    for a, b in zip(srpb, task):
+    assert len(srpb) == len(task) == 3
+    assert [c[2] for c in srpb[2:]] == [c[2] for c in task[2:]] == ["training.select_checkpoint"]
+    for a, b in zip(srpb[:2], task[:2]):
         # the same stages, budgets and hyperparameters
         assert a[a.index("--steps") + 1] == b[b.index("--steps") + 1]
         assert a[a.index("--hyperparams") :] == b[b.index("--hyperparams") :]
@@ -234,6 +239,8 @@ def test_retraining_runs_the_seeds_of_every_model_side_by_side(monkeypatch):
     assert rm.main() == 1  # one run failed
     firsts = [r for r in ran if r[0] == "srpb_gym"]
     seconds = [r for r in ran if r[0] == "training.multi_robot"]
+    # each second stage's checkpoint is chosen after it
+    assert len([r for r in ran if r[0] == "training.select_checkpoint"]) == len(seconds) == 5
     assert len(firsts) == 6
     # each run's second stage after its first; not after a failed first
     assert sorted(seconds) == sorted(
@@ -245,5 +252,8 @@ def test_retraining_runs_the_seeds_of_every_model_side_by_side(monkeypatch):
     # the chains are a model's commands by seed, the shipping command left out
     plan = rm.commands(names[0], [0, 1, 2], 1)
     chains = rm.seed_chains(plan, [0, 1, 2])
-    assert [len(c) for c in chains] == [2, 2, 2]
+    assert [len(c) for c in chains] == [3, 3, 3]
+    assert [c[-1][2:4] for c in chains] == [
+        ["training.select_checkpoint", c[1][c[1].index("--out") + 1]] for c in chains
+    ]
     assert all(plan[-1] not in chain for chain in chains)

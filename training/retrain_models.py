@@ -33,6 +33,7 @@ teach. Why each recipe is as it is: docs/notes/.
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import subprocess
 import sys
@@ -149,7 +150,11 @@ class MultiRecipe:
     hyperparameters) on routes drawn from the scenario's ``robots`` entries (``route``:
     the env argument, ``random`` or a list of entries): a specialist trained on the
     single robot's route drives the others' routes less well; the multi-robot run then
-    starts from that run's ``best/`` checkpoint."""
+    starts from that run's ``best/`` checkpoint. The run keeps a checkpoint every
+    ``save_every`` robot-steps, and ``python -m training.select_checkpoint`` chooses the
+    one it ships on checkpoint-selection seeds (the weakest robot's success first): from
+    one checkpoint to the next the third robot's success moves by a tenth, so the last one
+    is a draw."""
 
     scenario: str
     robots: int
@@ -159,6 +164,7 @@ class MultiRecipe:
     hyperparams: tuple[str, ...] = ()
     routes_steps: int = 0
     route: str = "random"
+    save_every: int = 200_000
 
 
 #: the crowd specialist with its own PPO settings fine-tuned alone on every route of the
@@ -196,8 +202,10 @@ def side_option(side_by_side: int) -> list[str]:
 
 def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
                    root: str = "runs/train", side_by_side: int = 1) -> list[list[str]]:  # fmt: skip
-    """The commands that retrain the multi-robot policy ``name``: a run per seed and, with
-    ``ship``, ``training.ship_multi`` of the first seed's run."""
+    """The commands that retrain the multi-robot policy ``name``: per seed a run (its
+    first stage alone on the routes, then the multi-robot run) and the choice of the
+    run's checkpoint and, with ``ship``, ``training.ship_multi`` of the first seed's
+    run."""
     multi = MULTI_RECIPES[name]
     scenario, preset = MODELS[multi.init]
     kwargs = env_kwargs_of(RECIPES[scenario], preset)
@@ -217,14 +225,20 @@ def multi_commands(name: str, seeds: list[int], threads: int, ship: bool = True,
     out += [[sys.executable, "-m", "training.multi_robot", "--scenario", multi.scenario,
              "--robots", str(multi.robots), "--envs", str(multi.envs), "--steps",
              str(multi.steps), "--reward", preset, "--seed", str(seed), "--init", init,
-             "--save-every", "100000", "--out", run,
+             "--save-every", str(multi.save_every), "--keep-checkpoints", "--out", run,
              *(["--env-kwargs", *kwargs] if kwargs else []),
              *(["--hyperparams", *hyper] if hyper else [])]
             for seed, run, init in zip(seeds, runs, inits)]  # fmt: skip
+    workers = str(threads or os.cpu_count() or 1)
+    out += [[sys.executable, "-m", SELECT, run, "--workers", workers] for run in runs]
     if ship:
         out.append([sys.executable, "-m", "training.ship_multi", runs[0], "--name", name,
                     *side_option(side_by_side)])  # fmt: skip
     return out
+
+
+#: the module that chooses a multi-robot run's checkpoint (it takes the run's folder)
+SELECT = "training.select_checkpoint"
 
 
 def recipe_of(name: str) -> Recipe:
@@ -359,9 +373,14 @@ def main() -> int:
 def seed_chains(plan: list[list[str]], seeds: list[int]) -> list[list[list[str]]]:
     """A model's training commands (``plan`` from :func:`commands`, the shipping command
     left out) as one chain per seed, in the order they run: a run's stages one after the
-    other, the seeds side by side."""
-    return [[cmd for cmd in plan if "--seed" in cmd and cmd[cmd.index("--seed") + 1] == str(seed)]
-            for seed in seeds]  # fmt: skip
+    other (the choice of a multi-robot run's checkpoint last), the seeds side by side."""
+    chains = []
+    for seed in seeds:
+        chain = [cmd for cmd in plan
+                 if "--seed" in cmd and cmd[cmd.index("--seed") + 1] == str(seed)]  # fmt: skip
+        outs = {cmd[cmd.index("--out") + 1] for cmd in chain if "--out" in cmd}
+        chains.append(chain + [cmd for cmd in plan if cmd[2] == SELECT and cmd[3] in outs])
+    return chains
 
 
 def _teacher_failed(name: str, failed: set[str]) -> bool:

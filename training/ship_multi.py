@@ -2,15 +2,18 @@
 
     python -m training.ship_multi runs/ppo-multi --name ppo-crowd-srpb-3robots
 
-Copies the run's ``model.zip`` and ``vecnormalize.npz`` into ``srpb_gym/models/<name>/``,
-evaluates the model once with the ``srpb-gym eval --robots N`` harness on ``--episodes``
-test seeds from ``--seed`` (200 from 20,000,000 by default: :data:`srpb_gym.seeds.TEST`),
-every robot driven by the one shared policy, beside the classical planners of
-``--baselines`` (``dwa`` and ``social-dwa`` by default: N robots each, on the same
-episodes), and writes ``card.json`` and ``card.md``: what the model was trained on and
-how, and per planner the success, collision and timeout rates over every robot with 95 %
-Wilson intervals, the robots that hit another robot, each robot's success, and the
-median SRPB metrics from the true people and from the tracked ones. The card names the
+Copies the run's model (``model.zip`` and ``vecnormalize.npz``) into
+``srpb_gym/models/<name>/``: the checkpoint that ``training.select_checkpoint`` chose on
+checkpoint-selection seeds when the run has its ``selection.json``, else (or with
+``--final``) the run's final model. It evaluates the model once with the ``srpb-gym eval
+--robots N`` harness on ``--episodes`` test seeds from ``--seed`` (200 from 20,000,000 by
+default: :data:`srpb_gym.seeds.TEST`), every robot driven by the one shared policy,
+beside the classical planners of ``--baselines`` (``dwa`` and ``social-dwa`` by default:
+N robots each, on the same episodes), and writes ``card.json`` and ``card.md``: what the
+model was trained on and how, which checkpoint and why (the selection's table), and per
+planner the success, collision and timeout rates over every robot with 95 % Wilson
+intervals, the robots that hit another robot, each robot's success, and the median SRPB
+metrics from the true people and from the tracked ones. The card names the
 ``srpb-gym eval`` command that reproduces its figures.
 
 ``--workers N`` spreads the episodes over N processes; ``--resume`` continues a test
@@ -45,7 +48,9 @@ from srpb_gym.evaluation.spec import resolve_config
 from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.reward_terms import preset_names
 from srpb_gym.training.checks import reward_weights
+from srpb_gym.training.run_folder import FINAL, chosen_model, read_selection
 from srpb_gym.training.targets import eval_command, eval_setup
+from training.select_checkpoint import table_lines
 from training.ship import (
     MODELS_DIR,
     TEST_EPISODES,
@@ -101,15 +106,17 @@ def summarize(rows: Sequence[Any]) -> dict[str, Any]:
 
 def evaluate(run: Path, name: str, robots: int, env_id: str, env_kwargs: dict[str, Any],
              episodes: int, seed: int, baselines: Sequence[str], workers: int,
-             resume: bool = False) -> dict[str, dict[str, Any]]:  # fmt: skip
-    """The figures, by planner (the model as ``name``), of the model in ``run`` and
-    ``baselines`` on the same ``episodes`` seeds from ``seed``, N robots each, evaluated
-    into ``run/test`` (with ``resume``, an interrupted evaluation there continues)."""
+             resume: bool = False,
+             model: Path | None = None) -> dict[str, dict[str, Any]]:  # fmt: skip
+    """The figures, by planner (the model as ``name``), of the model in ``model`` (by
+    default ``run``) and ``baselines`` on the same ``episodes`` seeds from ``seed``, N
+    robots each, evaluated into ``run/test`` (with ``resume``, an interrupted evaluation
+    there continues)."""
     work = run / "test"
     resume = resume and (work / "config.json").is_file()
     if not resume:
         shutil.rmtree(work, ignore_errors=True)
-    config = resolve_config([env_id], planners=list(baselines), policies=[str(run)],
+    config = resolve_config([env_id], planners=list(baselines), policies=[str(model or run)],
                             episodes=episodes, seed=seed, out=str(work), workers=workers,
                             warmup=TEST_WARMUP, robots=robots, env_kwargs=env_kwargs,
                             resume=resume, log=None)  # fmt: skip
@@ -131,11 +138,12 @@ def test_command(name: str, test: dict[str, Any]) -> str:
 def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_SEED,
          baselines: Sequence[str] = BASELINES, workers: int = 1,
          resume: bool = False, candidates: int = 1,
-         side_by_side: int = 1) -> dict[str, Any]:  # fmt: skip
+         side_by_side: int = 1, final: bool = False) -> dict[str, Any]:  # fmt: skip
     """Package ``run`` as model ``name`` (see the module docstring); returns the card.
     ``resume``: continue the interrupted test evaluation in ``run/test``; ``candidates``:
     the runs trained for this slot and tested on the test seeds; ``side_by_side``: the
-    runs that trained at once on the machine's cores."""
+    runs that trained at once on the machine's cores; ``final``: ship the final model
+    even when the run has a selection."""
     for key, value in (("candidates", candidates), ("side_by_side", side_by_side)):
         if value < 1:
             raise ValueError(f"{key}: at least 1 (the run shipped), got {value}")
@@ -145,12 +153,14 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
     env_id = next(k for k, v in SCENARIO_IDS.items() if v == scenario)
     env_kwargs = {"reward": info["reward"], **info.get("env_kwargs", {})}
     env_ids, eval_kwargs = eval_setup(env_id, env_kwargs)
+    selection = None if final else read_selection(run)
+    model = chosen_model(run, selection)
     results = evaluate(run, name, robots, env_ids[0], eval_kwargs, episodes, seed, baselines,
-                       workers, resume)  # fmt: skip
+                       workers, resume, model)  # fmt: skip
     shutil.rmtree(target, ignore_errors=True)  # nothing of an earlier model stays
     target.mkdir(parents=True)
     for file in ("model.zip", "vecnormalize.npz"):
-        shutil.copyfile(run / file, target / file)
+        shutil.copyfile(model / file, target / file)
     init = info.get("init")
     if init:
         init = {**init, "model": _relative(init["model"]),
@@ -160,8 +170,10 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
         "name": name, "algo": "PPO", "env": env_id, "reward": info["reward"], "robots": robots,
         "env_kwargs": env_kwargs, "seed": info["seed"],
         "reward_weights": reward_weights(env_id, info["reward"], env_kwargs),
-        "checkpoint": "final", "validation": None, "hyperparams": info["hyperparams"],
-        "training": {"steps": info["steps"], "wall_time_s": info["wall_time_s"],
+        "checkpoint": selection["chosen"] if selection else FINAL, "selection": selection,
+        "validation": None, "hyperparams": info["hyperparams"],
+        "training": {"steps": _steps(selection, info), "run_steps": info["steps"],
+                     "wall_time_s": info["wall_time_s"],
                      "envs": info["envs"], "machine": cpu(), "command": info["command"],
                      "side_by_side": side_by_side, "init": init},
         "test": {"episodes": episodes, "seed": seed, "seed_range": _range_name(seed, episodes),
@@ -204,6 +216,44 @@ def _start_text(init: dict[str, Any] | None) -> str:
     return text
 
 
+def _steps(selection: dict[str, Any] | None, info: dict[str, Any]) -> int:
+    """The robot-steps the shipped model trained for: its checkpoint's, or the run's."""
+    if selection is None:
+        return int(info["steps"])
+    return int(selection["candidates"][selection["chosen"]]["steps"])
+
+
+def _checkpoint_text(card: dict[str, Any]) -> str:
+    """The card's line on the checkpoint shipped, and how it was chosen."""
+    selection = card.get("selection")
+    if not selection:
+        return str(card["checkpoint"])
+    last = selection["seed"] + selection["episodes"] - 1
+    return (
+        f"{card['checkpoint']}, one of {len(selection['candidates'])} candidates, chosen on "
+        f"{selection['episodes']} episodes of checkpoint-selection seeds "
+        f"{selection['seed']}-{last} by {selection['rule']} (table below)"
+    )
+
+
+def _selection_section(card: dict[str, Any]) -> list[str]:
+    """The card's section with the checkpoint selection's table (none without one)."""
+    selection = card.get("selection")
+    if not selection:
+        return []
+    return ["", "## Checkpoint selection", "",
+            f"`python -m training.select_checkpoint RUN` evaluated the run's checkpoints on "
+            f"{selection['episodes']} episodes of {card['robots']} robots from seed "
+            f"{selection['seed']}; success in %, GT median over every robot's episode.", "",
+            *table_lines(selection)]  # fmt: skip
+
+
+def _run_steps(training: dict[str, Any]) -> str:
+    """`` of the run's N`` when the model shipped is an earlier checkpoint."""
+    total = training.get("run_steps")
+    return f", of the run's {total:,}" if total and total != training["steps"] else ""
+
+
 def _percent(f: dict[str, Any], key: str) -> str:
     ci = f.get(f"{key}_ci")
     interval = f" [{100 * ci[0]:.0f}-{100 * ci[1]:.0f}]" if ci else ""
@@ -238,12 +288,14 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         f"| reward people | `{card['env_kwargs'].get('reward_people', 'tracked')}` |",
         f"| observation | {_observation_text(card['env_kwargs'].get('observation'))} |",
         f"| steps | {t['steps']:,} robot-steps ({t['envs']} environment"
-        f"{'s' if t['envs'] > 1 else ''} of {n} robots) |",
+        f"{'s' if t['envs'] > 1 else ''} of {n} robots)"
+        f"{_run_steps(t)} |",
         f"| wall time | {t['wall_time_s'] / 60:.1f} min"
+        f"{' (the whole run)' if _run_steps(t) else ''}"
         f"{side_by_side_text(t.get('side_by_side', 1))} |",
         f"| initial weights | {start} |",
         f"| seed | {card['seed']} |",
-        f"| checkpoint | {card['checkpoint']} |",
+        f"| checkpoint | {_checkpoint_text(card)} |",
         f"| command | `{t['command']}` |",
         "", "Hyperparameters: " + ", ".join(f"`{k}={_flow(v)}`"
                                             for k, v in card["hyperparams"].items()),
@@ -264,7 +316,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
         lines.append(f"| {planner} | {_percent(f, 'success')} | {_percent(f, 'collision')} | "
                      f"{_percent(f, 'robot_collision')} | {_percent(f, 'timeout')} | "
                      f"{by_robot} | {metrics} |")  # fmt: skip
-    lines += ["", f"Measured on {_cpu_text(test['machine'])}."]
+    lines += ["", f"Measured on {_cpu_text(test['machine'])}.", *_selection_section(card)]
     return "\n".join(lines) + "\n"
 
 
@@ -282,6 +334,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--candidates", type=int, default=1, metavar="N",
                         help="the runs trained for this slot and tested on the test seeds "
                         "(default: 1), stated on the card")  # fmt: skip
+    parser.add_argument(
+        "--final",
+        action="store_true",
+        help="ship the final model even when the run has a selection.json",
+    )
     parser.add_argument("--side-by-side", type=int, default=1, metavar="N",
                         help="the run trained beside N-1 others on the same machine: the "
                         "card says so")  # fmt: skip
@@ -292,7 +349,7 @@ def main(argv: list[str] | None = None) -> int:
         robots = json.loads((args.run / "run.json").read_text(encoding="utf-8"))["robots"]
         check_name(args.name, robots)
         card = ship(args.run, args.name, args.episodes, args.seed, args.baselines, args.workers,
-                    args.resume, args.candidates, args.side_by_side)  # fmt: skip
+                    args.resume, args.candidates, args.side_by_side, args.final)  # fmt: skip
     except (ValueError, KeyError) as exc:
         print(f"training.ship_multi: error: {exc}", file=sys.stderr)
         return 2

@@ -1,6 +1,8 @@
 """The files of a training run's folder that srpb-gym writes itself: ``config.yaml`` (every
 resolved setting), ``command.txt`` (the command line) and ``run.json`` (reward weights,
-seed, versions, machine, then steps and wall time), and the folder's default place."""
+seed, versions, machine, then steps and wall time), and the folder's default place; and
+the checkpoint a multi-robot run's ``selection.json`` chose
+(``python -m training.select_checkpoint``)."""
 
 from __future__ import annotations
 
@@ -10,12 +12,19 @@ import platform
 import shlex
 import time
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import yaml
 
+from srpb_gym.errors import InputError
 from srpb_gym.evaluation.harness import versions
 from srpb_gym.training.config import TrainConfig
+
+#: the file a multi-robot run's choice of checkpoint is written to, in the run folder
+SELECTION_FILE = "selection.json"
+#: the candidate name of a run's final model in that file
+FINAL = "final"
 
 
 def default_out(env_id: str, preset: str, now: float | None = None) -> str:
@@ -66,3 +75,29 @@ def machine() -> dict[str, Any]:
     return {"processor": platform.processor() or platform.machine(),
             "cpu_count": os.cpu_count(), "system": platform.platform(),
             "torch_threads": torch.get_num_threads()}  # fmt: skip
+
+
+def read_selection(run: Path) -> dict[str, Any] | None:
+    """The selection written for ``run`` (``None`` when it has none); an
+    :class:`InputError` when its chosen candidate is not in the run."""
+    path = run / SELECTION_FILE
+    if not path.is_file():
+        return None
+    try:
+        selection = json.loads(path.read_text(encoding="utf-8"))
+        chosen = selection["chosen"]
+    except (ValueError, KeyError, TypeError) as exc:
+        raise InputError(
+            f"not a selection of training.select_checkpoint ({exc})", str(path)
+        ) from None
+    model = run if chosen == FINAL else run / "checkpoints" / str(chosen)
+    if not (model / "model.zip").is_file():
+        raise InputError(f"the chosen candidate {chosen!r} has no model.zip", str(path))
+    return selection
+
+
+def chosen_model(run: Path, selection: dict[str, Any] | None) -> Path:
+    """The folder of the model to ship: the chosen candidate, or the run's final model."""
+    if selection is None or selection["chosen"] == FINAL:
+        return run
+    return run / "checkpoints" / selection["chosen"]
