@@ -276,6 +276,25 @@ def analyse(results: list[EpisodeResult], a: list[str], b: list[str], planners: 
     return report
 
 
+def run_label(run: Path, model: str) -> str | None:
+    """The report's name for a checkpoint a multi-robot run kept: the run folder's name
+    and the checkpoint's (``keep-3robots-s1 (step_000200004)``); ``None`` for any other
+    model, which keeps the evaluation's label."""
+    model_path = Path(model)
+    if model_path.parent.name == "checkpoints" and model_path.parent.parent == run:
+        return f"{run.name} ({model_path.name})"
+    return None
+
+
+def relabel(report: dict[str, Any], names: dict[str, str]) -> dict[str, Any]:
+    """``report`` with its runs named by ``names`` (evaluation label -> name) where given."""
+    for row in report["runs"]:
+        row["label"] = names.get(row["label"], row["label"])
+    for pair in report["pairs"]:
+        pair["a"], pair["b"] = names.get(pair["a"], pair["a"]), names.get(pair["b"], pair["b"])
+    return report
+
+
 def _num(value: float | None, fmt: str = ".3g") -> str:
     return "n/a" if value is None or not np.isfinite(value) else format(value, fmt)
 
@@ -377,6 +396,9 @@ def main(argv: list[str] | None = None) -> int:
         n = len(args.a)
         report = analyse(outcome.results, labels[:n], labels[n:], list(args.planner),
                          tuple(args.names), args.robots)  # fmt: skip
+        runs = [*args.a, *args.b]
+        names = {label: run_label(run, model) for label, run, model in zip(labels, runs, models)}
+        relabel(report, {label: name for label, name in names.items() if name})
     except InputError as exc:
         print(f"controlled_comparison: {exc}", file=sys.stderr)
         return 2

@@ -156,6 +156,14 @@ def test_a_multi_robot_run_and_a_shipped_policy_for_several_robots(tmp_path):
     (run / "selection.json").write_text(json.dumps({"chosen": chosen.name}))
     assert cc.checkpoint_of(run, "best") == (str(chosen), None)
     assert cc.checkpoint_of(run, "final") == (str(run / "model.zip"), None)
+    # the report names a kept checkpoint by its run, other models by their labels
+    assert cc.run_label(run, str(chosen)) == "multi (step_000000400)"
+    assert cc.run_label(run, str(run / "model.zip")) is None
+    report = {"runs": [{"label": "step_000000400"}, {"label": "dwa"}],
+              "pairs": [{"a": "x", "b": "step_000000400"}]}  # fmt: skip
+    cc.relabel(report, {"step_000000400": "multi (step_000000400)"})
+    assert [r["label"] for r in report["runs"]] == ["multi (step_000000400)", "dwa"]
+    assert report["pairs"] == [{"a": "x", "b": "multi (step_000000400)"}]
     (run / "selection.json").unlink()
     notes = cc.check_pairs([run], [Path(name)])
     assert "differ in" in notes[0] and "reward" in notes[0]

@@ -58,6 +58,7 @@ def test_every_checkpoint_is_evaluated_and_the_best_by_the_rule_is_chosen(kept_r
     assert f"chosen: {selection['chosen']} (the highest success of the least" in printed
     # the figures are those of the episodes evaluated, on the selection seeds
     rows = read_episodes(str(kept_run / "selection" / "episodes.csv"))
+    assert not (kept_run / "selection" / "episodes").exists()  # the records are let go
     assert {r.seed for r in rows} == {1_000_000, 1_000_001}
     for name, f in table.items():
         label = kept_run.name if name == FINAL else name

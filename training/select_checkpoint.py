@@ -13,7 +13,8 @@ crowd recipe reaches its goal in 27-44 of 50 episodes from one checkpoint to the
 ``--episodes`` episodes (50) from ``--seed`` (1,000,000: the checkpoint-selection seeds,
 :data:`srpb_gym.seeds.CHECKPOINT_SELECTION`; seeds outside that range are refused), in
 the environment the run trained in (:func:`srpb_gym.training.targets.eval_setup`), into
-``RUN/selection/`` (an ``srpb-gym eval`` output folder), and writes ``RUN/selection.json``:
+``RUN/selection/`` (an ``srpb-gym eval`` output folder, its episode records removed once
+the candidates are scored: about 0.5 GB a candidate), and writes ``RUN/selection.json``:
 per candidate, the success of each robot, the success over every robot's episode, the
 collisions and the median ``m_psi`` from the true people; and the one chosen by
 :func:`score`: the highest success of the least successful robot, then the success over
@@ -115,6 +116,9 @@ def select(run: Path, episodes: int = SELECTION_EPISODES, seed: int = SELECTION_
     rows: dict[str, list[Any]] = {name: [] for name in models}
     for r in run_evaluation(config, log=lambda line: None).results:
         rows[label[r.planner]].append(r)
+    # the episode records (about 10 MB an episode of 3 robots) choose nothing: episodes.csv
+    # keeps every episode's metrics
+    shutil.rmtree(work / "episodes", ignore_errors=True)
     table = {name: {"steps": steps_of(name, int(info["steps"])), **figures(rows[name])}
              for name in models}  # fmt: skip
     chosen = max(table, key=lambda name: score(table[name]))
