@@ -122,7 +122,8 @@ def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
     ]
     assert train[1:3] == ["-m", "training.multi_robot"]
     # first alone on every route of the scenario, then among the other robots from there
-    assert routes[routes.index("--init") + 1] == "ppo-crowd-srpb" and "route=random" in routes
+    route = "route=[0, 1, 2, 2]"  # the 3 robots' routes, robot 2's twice as often
+    assert routes[routes.index("--init") + 1] == "ppo-crowd-srpb" and route in routes
     first = routes[routes.index("--out") + 1]
     assert train[train.index("--init") + 1] == f"{first}/best" and "--seed" in train
     # every checkpoint kept, one chosen on checkpoint-selection seeds, that one shipped
@@ -135,7 +136,7 @@ def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
     assert train[train.index("--env-kwargs") + 1 : train.index("--hyperparams")] == kwargs
     assert routes[routes.index("--env-kwargs") + 1 : routes.index("--hyperparams")] == [
         *kwargs,
-        "route=random",
+        route,
     ]
     assert routes[routes.index("--hyperparams") :] == train[train.index("--hyperparams") :]
     assert waves([name, "ppo-crowd-srpb"], []) == [["ppo-crowd-srpb"], [name]]
@@ -257,3 +258,24 @@ def test_retraining_runs_the_seeds_of_every_model_side_by_side(monkeypatch):
         ["training.select_checkpoint", c[1][c[1].index("--out") + 1]] for c in chains
     ]
     assert all(plan[-1] not in chain for chain in chains)
+
+
+def test_the_recipe_reproduces_the_shipped_policy_stage_by_stage():
+    """Both stages of the shipped 3-robot policy ran the recipe's commands (but for the
+    output folders and the torch threads of runs side by side), and the checkpoint shipped
+    is the one the recipe's selection chose."""
+    name = "ppo-crowd-srpb-3robots"
+    facts = card(name)
+    routes, train, _, _ = commands(name, [facts["seed"]], 1)
+
+    def options(command: list[str] | str) -> list[str]:
+        words = shlex.split(command) if isinstance(command, str) else command
+        words = words[next(i for i, w in enumerate(words) if w.startswith("--")) :]
+        paths = {words.index(k) + 1 for k in ("--out", "--init")}
+        return [w for i, w in enumerate(words) if i not in paths and not w.startswith("torch_")]
+
+    shipped = facts["training"]
+    assert options(shipped["init"]["run"]["command"]) == options(routes)
+    assert options(shipped["command"]) == options(train)
+    assert facts["checkpoint"] == facts["selection"]["chosen"] != "final"
+    assert (facts["selection"]["seed"], facts["selection"]["episodes"]) == (1_000_000, 50)
