@@ -87,6 +87,11 @@ def test_ship_takes_the_chosen_checkpoint_and_says_how_it_was_chosen(kept_run, t
     assert "| checkpoint | step_000000256, one of 3 candidates, chosen on 2 episodes" in text
     assert "| 256 robot-steps (1 environment of 2 robots), of the run's 512 |" in text
     assert "## Checkpoint selection" in text and "| **step_000000256** | 256 |" in text
+    several = {**card, "test": {**card["test"], "candidates": 3}}
+    assert "was chosen on validation and checkpoint-selection seeds." in (
+        ship_multi.card_markdown(name, several))  # fmt: skip
+    several["selection"] = None
+    assert "was chosen on validation seeds." in ship_multi.card_markdown(name, several)
     # --final ships the last model whatever was chosen
     card = ship_multi.ship(kept_run, name, episodes=1, seed=7, baselines=[], final=True)
     assert card["checkpoint"] == FINAL and card["selection"] is None

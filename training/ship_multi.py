@@ -260,14 +260,17 @@ def _percent(f: dict[str, Any], key: str) -> str:
     return f"{100 * f[key]:.1f} %{interval}"
 
 
-def _candidates(n: int | None) -> list[str]:
+def _candidates(n: int | None, selected: bool = False) -> list[str]:
+    """The card's line on the runs tested on the test seeds for this slot (``selected``:
+    the model shipped is a checkpoint chosen on checkpoint-selection seeds)."""
     if n is None:  # a card from before the count was kept
         return []
     if n == 1:
         return ["1 candidate run was trained for this slot; the test seeds were used once, "
                 "at shipping.", ""]  # fmt: skip
+    seeds = "validation and checkpoint-selection seeds" if selected else "validation seeds"
     return [f"{n} candidate runs were trained for this slot and tested on these seeds; the "
-            "one shipped was chosen on validation seeds.", ""]  # fmt: skip
+            f"one shipped was chosen on {seeds}.", ""]  # fmt: skip
 
 
 def card_markdown(name: str, card: dict[str, Any]) -> str:
@@ -301,7 +304,7 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
                                             for k, v in card["hyperparams"].items()),
         "", f"## Test: {test['episodes']} episodes of {n} robots, seeds {test['seed']}-{last} "
         f"({test['seed_range']} seeds, never trained on or chosen with)", "",
-        *_candidates(test.get("candidates")),
+        *_candidates(test.get("candidates"), bool(card.get("selection"))),
         "Rates over every robot's episode, with 95 % Wilson intervals; *hit a robot*: the "
         "robot's first collision was with another robot. Medians of the SRPB metrics (%, "
         "s), `paper` semantics, from the true people (GT) and, after the slash, from the "
