@@ -38,17 +38,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from srpb_gym.errors import InputError
 from srpb_gym.evaluation.harness import run_evaluation
-from srpb_gym.evaluation.multi import success_by_robot
 from srpb_gym.evaluation.spec import resolve_config
-from srpb_gym.registration import SCENARIO_IDS
 from srpb_gym.seeds import CHECKPOINT_SELECTION, check_within
 from srpb_gym.training.callbacks import CHOOSE_BY
 from srpb_gym.training.run_folder import FINAL, SELECTION_FILE
-from srpb_gym.training.targets import eval_setup
+from training.ship_multi import run_environment, summarize, table_lines
 
 #: the episodes and first seed of the selection (checkpoint-selection seeds)
 SELECTION_EPISODES, SELECTION_SEED = 50, CHECKPOINT_SELECTION.start
@@ -74,15 +70,15 @@ def steps_of(name: str, run_steps: int) -> int:
     return run_steps if name == FINAL else int(name.removeprefix("step_"))
 
 
+#: the figures of each candidate in the selection file (:func:`training.ship_multi.summarize`'s)
+FIGURES = ("episodes", "success_by_robot", "success", "collision", CHOOSE_BY)
+
+
 def figures(rows: Sequence[Any]) -> dict[str, Any]:
-    """One candidate's figures over its robot episodes (:class:`EpisodeResult` rows)."""
-    psi = [r.value("m_psi", True) for r in rows]
-    psi = [v for v in psi if math.isfinite(v)]
-    return {"episodes": len(rows),
-            "success_by_robot": success_by_robot(rows),
-            "success": float(np.mean([r.is_success for r in rows])),
-            "collision": float(np.mean([r.collision for r in rows])),
-            CHOOSE_BY: float(np.median(psi)) if psi else math.nan}  # fmt: skip
+    """One candidate's figures over its robot episodes (:class:`EpisodeResult` rows):
+    those of :data:`FIGURES`, as a shipped multi-robot model's card computes them."""
+    summary = summarize(rows)
+    return {key: summary[key] for key in FIGURES}
 
 
 def score(f: dict[str, Any]) -> tuple[float, float, float]:
@@ -102,8 +98,7 @@ def select(run: Path, episodes: int = SELECTION_EPISODES, seed: int = SELECTION_
         raise InputError("no run.json (not a run of training.multi_robot)", str(run))
     info = json.loads(info_file.read_text(encoding="utf-8"))
     models = candidates(run)
-    env_id = next(k for k, v in SCENARIO_IDS.items() if v == info["scenario"])
-    env_ids, kwargs = eval_setup(env_id, {"reward": info["reward"], **info.get("env_kwargs", {})})
+    _, _, env_ids, kwargs = run_environment(info)
     work = run / "selection"
     resume = resume and (work / "config.json").is_file()
     if not resume:
@@ -127,20 +122,6 @@ def select(run: Path, episodes: int = SELECTION_EPISODES, seed: int = SELECTION_
            "candidates": table, "chosen": chosen}  # fmt: skip
     (run / SELECTION_FILE).write_text(json.dumps(out, indent=2) + "\n", encoding="utf-8")
     return out
-
-
-def table_lines(selection: dict[str, Any]) -> list[str]:
-    """The selection as a Markdown table, one row per candidate, the chosen one bold."""
-    lines = ["| candidate | robot-steps | success by robot | success | collision | "
-             f"GT {CHOOSE_BY.removeprefix('gt_')} |",
-             "| --- | ---: | ---: | ---: | ---: | ---: |"]  # fmt: skip
-    for name, f in selection["candidates"].items():
-        mark = "**" if name == selection["chosen"] else ""
-        by_robot = " / ".join(f"{100 * s:.0f}" for s in f["success_by_robot"])
-        lines.append(f"| {mark}{name}{mark} | {f['steps']:,} | {by_robot} | "
-                     f"{100 * f['success']:.1f} % | {100 * f['collision']:.1f} % | "
-                     f"{f[CHOOSE_BY]:.3g} |")  # fmt: skip
-    return lines
 
 
 def main(argv: Sequence[str] | None = None) -> int:

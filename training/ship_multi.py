@@ -45,12 +45,12 @@ from srpb_gym.evaluation.harness import cpu, run_evaluation
 from srpb_gym.evaluation.intervals import wilson
 from srpb_gym.evaluation.multi import robot_hits, success_by_robot
 from srpb_gym.evaluation.spec import resolve_config
-from srpb_gym.registration import SCENARIO_IDS
+from srpb_gym.registration import ENV_IDS, SCENARIO_IDS
 from srpb_gym.reward_terms import preset_names
+from srpb_gym.training.callbacks import CHOOSE_BY
 from srpb_gym.training.checks import reward_weights
 from srpb_gym.training.run_folder import FINAL, chosen_model, read_selection
 from srpb_gym.training.targets import eval_command, eval_setup
-from training.select_checkpoint import table_lines
 from training.ship import (
     MODELS_DIR,
     TEST_EPISODES,
@@ -127,6 +127,17 @@ def evaluate(run: Path, name: str, robots: int, env_id: str, env_kwargs: dict[st
     return {planner: summarize(rows) for planner, rows in by_planner.items()}
 
 
+def run_environment(info: dict[str, Any]) -> tuple[str, dict[str, Any], list[str], dict[str, Any]]:
+    """The environment of a multi-robot run (its ``run.json`` facts ``info``): its id, the
+    env kwargs it trained with (its reward preset among them), and the environment ids and
+    env kwargs it is evaluated with (those of training only left out,
+    :func:`srpb_gym.training.targets.eval_setup`)."""
+    env_id = ENV_IDS[info["scenario"]]
+    env_kwargs = {"reward": info["reward"], **info.get("env_kwargs", {})}
+    env_ids, eval_kwargs = eval_setup(env_id, env_kwargs)
+    return env_id, env_kwargs, env_ids, eval_kwargs
+
+
 def test_command(name: str, test: dict[str, Any]) -> str:
     """The ``srpb-gym eval`` command that reproduces the card's test figures."""
     command = eval_command(test["envs"], test["env_kwargs"], name,
@@ -148,11 +159,9 @@ def ship(run: Path, name: str, episodes: int = TEST_EPISODES, seed: int = TEST_S
         if value < 1:
             raise ValueError(f"{key}: at least 1 (the run shipped), got {value}")
     info = json.loads((run / "run.json").read_text(encoding="utf-8"))
-    robots, scenario = int(info["robots"]), info["scenario"]
+    robots = int(info["robots"])
     target = check_name(name, robots)
-    env_id = next(k for k, v in SCENARIO_IDS.items() if v == scenario)
-    env_kwargs = {"reward": info["reward"], **info.get("env_kwargs", {})}
-    env_ids, eval_kwargs = eval_setup(env_id, env_kwargs)
+    env_id, env_kwargs, env_ids, eval_kwargs = run_environment(info)
     selection = None if final else read_selection(run)
     model = chosen_model(run, selection)
     results = evaluate(run, name, robots, env_ids[0], eval_kwargs, episodes, seed, baselines,
@@ -321,6 +330,20 @@ def card_markdown(name: str, card: dict[str, Any]) -> str:
                      f"{by_robot} | {metrics} |")  # fmt: skip
     lines += ["", f"Measured on {_cpu_text(test['machine'])}.", *_selection_section(card)]
     return "\n".join(lines) + "\n"
+
+
+def table_lines(selection: dict[str, Any]) -> list[str]:
+    """The selection as a Markdown table, one row per candidate, the chosen one bold."""
+    lines = ["| candidate | robot-steps | success by robot | success | collision | "
+             f"GT {CHOOSE_BY.removeprefix('gt_')} |",
+             "| --- | ---: | ---: | ---: | ---: | ---: |"]  # fmt: skip
+    for name, f in selection["candidates"].items():
+        mark = "**" if name == selection["chosen"] else ""
+        by_robot = " / ".join(f"{100 * s:.0f}" for s in f["success_by_robot"])
+        lines.append(f"| {mark}{name}{mark} | {f['steps']:,} | {by_robot} | "
+                     f"{100 * f['success']:.1f} % | {100 * f['collision']:.1f} % | "
+                     f"{f[CHOOSE_BY]:.3g} |")  # fmt: skip
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
