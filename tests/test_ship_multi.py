@@ -17,7 +17,7 @@ sys.path.insert(0, str(ROOT))
 from srpb_gym.evaluation.data import EpisodeResult  # noqa: E402
 from srpb_gym.models import card, model_names, model_path  # noqa: E402
 from srpb_gym.sim.contact import Collision  # noqa: E402
-from training import ship_multi  # noqa: E402
+from training import select_checkpoint, ship_multi  # noqa: E402
 from training.retrain_models import MODELS, MULTI_RECIPES, commands, waves  # noqa: E402
 
 MULTI = [name for name in model_names() if name in MULTI_RECIPES]
@@ -129,7 +129,8 @@ def test_the_recipe_starts_from_the_crowd_specialist_after_it_is_retrained():
     # every checkpoint kept, one chosen on checkpoint-selection seeds, that one shipped
     run = train[train.index("--out") + 1]
     assert "--keep-checkpoints" in train and train[train.index("--save-every") + 1] == "200000"
-    assert select[1:4] == ["-m", "training.select_checkpoint", run] and "--seed" not in select
+    assert select[1:4] == ["-m", "training.select_checkpoint", run]
+    assert "--seed" not in select and "--episodes" not in select  # the defaults
     assert ship[ship.index("training.ship_multi") + 1] == run
     crowd = commands("ppo-crowd-srpb", [4], 1, ship=False)[0]
     kwargs = crowd[crowd.index("--env-kwargs") + 1 : crowd.index("--hyperparams")]
@@ -278,4 +279,8 @@ def test_the_recipe_reproduces_the_shipped_policy_stage_by_stage():
     assert options(shipped["init"]["run"]["command"]) == options(routes)
     assert options(shipped["command"]) == options(train)
     assert facts["checkpoint"] == facts["selection"]["chosen"] != "final"
-    assert (facts["selection"]["seed"], facts["selection"]["episodes"]) == (1_000_000, 50)
+    # the recipe's selection command takes the defaults
+    assert (facts["selection"]["seed"], facts["selection"]["episodes"]) == (
+        select_checkpoint.SELECTION_SEED,
+        select_checkpoint.SELECTION_EPISODES,
+    )

@@ -10,7 +10,9 @@ A single-robot run chooses ``best/`` by its periodic evaluations; a run of
 crowd recipe reaches its goal in 27-44 of 50 episodes from one checkpoint to the next,
 200,000 robot-steps apart. This script evaluates every ``checkpoints/step_<N>/`` of
 ``RUN`` and its final model, every robot driven by the one shared policy, on
-``--episodes`` episodes (50) from ``--seed`` (1,000,000: the checkpoint-selection seeds,
+``--episodes`` episodes (100: a robot's success read on 50 carries a 95 % interval about
+20 points wide, wider than most of the gaps between candidates) from ``--seed``
+(1,000,000: the checkpoint-selection seeds,
 :data:`srpb_gym.seeds.CHECKPOINT_SELECTION`; seeds outside that range are refused), in
 the environment the run trained in (:func:`srpb_gym.training.targets.eval_setup`), into
 ``RUN/selection/`` (an ``srpb-gym eval`` output folder, its episode records removed once
@@ -47,7 +49,7 @@ from srpb_gym.training.run_folder import FINAL, SELECTION_FILE
 from training.ship_multi import run_environment, summarize, table_lines
 
 #: the episodes and first seed of the selection (checkpoint-selection seeds)
-SELECTION_EPISODES, SELECTION_SEED = 50, CHECKPOINT_SELECTION.start
+SELECTION_EPISODES, SELECTION_SEED = 100, CHECKPOINT_SELECTION.start
 #: the rule, as the selection file and the card state it
 RULE = ("the highest success of the least successful robot, then the success over every "
         f"robot's episode, then the lower median {CHOOSE_BY}")  # fmt: skip
