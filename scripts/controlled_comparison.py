@@ -40,7 +40,9 @@ and the success of each robot); the pairs and the pooled effects are over episod
 episode's values the mean over its robots (the robots of one episode share it, so their
 values are not independent), and a pair's success difference is tested with the Wilcoxon
 signed-rank test of the episodes' differences in the share of robots that reached their
-goals (McNemar with one robot).
+goals (McNemar with one robot). The pooled effects add the success of each robot (robot
+k's success in an episode, averaged over the training seeds): a reward can serve one
+robot's route worse while the success over every robot holds.
 """
 
 from __future__ import annotations
@@ -272,6 +274,14 @@ def analyse(results: list[EpisodeResult], a: list[str], b: list[str], planners: 
         ma = np.mean([episode_values(label, metric) for label in a], axis=0)
         mb = np.mean([episode_values(label, metric) for label in b], axis=0)
         pooled[metric] = effect(ma, mb, metric)
+
+    def robot_success(label: str, robot: int) -> np.ndarray:
+        return values(by[label], "success", False).reshape(-1, robots)[:, robot]
+
+    for robot in range(robots if robots > 1 else 0):
+        ma = np.mean([robot_success(label, robot) for label in a], axis=0)
+        mb = np.mean([robot_success(label, robot) for label in b], axis=0)
+        pooled[f"success of robot {robot}"] = effect(ma, mb, "success")
     report["pooled"] = pooled
     return report
 
@@ -344,8 +354,8 @@ def markdown(report: dict[str, Any]) -> str:
               "over the seeds):", "", "| figure | A | B | B against A | 95 % interval | "
               "Wilcoxon p | n |", "| --- | --- | --- | --- | --- | --- | --- |"]  # fmt: skip
     for metric, e in report["pooled"].items():
-        if metric == "success":
-            label, scale, unit = "success", 100.0, " pt"
+        if metric.startswith("success"):
+            label, scale, unit = metric, 100.0, " pt"
         else:
             label, scale, unit = f"mean GT {metric}", 1.0, " %"
         lines.append(f"| {label} | {_num(scale * e['a'])} | {_num(scale * e['b'])} | "

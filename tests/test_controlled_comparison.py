@@ -123,8 +123,14 @@ def test_several_robots_are_compared_by_episode():
     assert b_row["success_by_robot"] == [100.0, pytest.approx(200 / 3)]
     assert report["pairs"][0]["success"] == pytest.approx(-100 / 6)
     assert report["pooled"]["success"]["effect"] == pytest.approx(-100 / 6)
+    # each robot's success pooled apart: robot 0 the same, robot 1 a third lower
+    robot0, robot1 = report["pooled"]["success of robot 0"], report["pooled"]["success of robot 1"]
+    assert (robot0["a"], robot0["b"], robot0["effect"]) == (1.0, 1.0, 0.0)
+    assert robot1["b"] == pytest.approx(2 / 3) and robot1["effect"] == pytest.approx(-100 / 3)
+    assert robot1["n"] == 3 and robot1["ci"][0] <= robot1["effect"] <= robot1["ci"][1]
     text = cc.markdown(report)
     assert "3 episodes of 2 robots" in text and "| 100 / 67 |" in text and "Wilcoxon p |" in text
+    assert "| success of robot 1 | 100 | 66.7 | -33.3 pt |" in text
     # one robot missing from an episode: refused
     with pytest.raises(InputError, match="b: not every episode"):
         cc.analyse(results[:-1], ["a"], ["b"], [], ("task", "srpb"), robots=2)
