@@ -90,8 +90,7 @@ def read_selection(run: Path) -> dict[str, Any] | None:
         raise InputError(
             f"not a selection of training.select_checkpoint ({exc})", str(path)
         ) from None
-    model = run if chosen == FINAL else run / "checkpoints" / str(chosen)
-    if not (model / "model.zip").is_file():
+    if not (chosen_model(run, selection) / "model.zip").is_file():
         raise InputError(f"the chosen candidate {chosen!r} has no model.zip", str(path))
     return selection
 
@@ -100,4 +99,4 @@ def chosen_model(run: Path, selection: dict[str, Any] | None) -> Path:
     """The folder of the model to ship: the chosen candidate, or the run's final model."""
     if selection is None or selection["chosen"] == FINAL:
         return run
-    return run / "checkpoints" / selection["chosen"]
+    return run / "checkpoints" / str(selection["chosen"])
